@@ -1,0 +1,47 @@
+"""pedmesh: pedestrian crowd simulation on triangulated rooms.
+
+The social force model and continuum (finite-volume WENO) models on one triangle mesh, routed
+by an unstructured fast-marching eikonal solver. All quantities are SI: metres, seconds,
+pedestrians per square metre.
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from .errors import (
+    GeometryError,
+    MeshError,
+    ParameterError,
+    PedmeshError,
+    RoomFileError,
+    SimulationError,
+    UnsupportedFormatError,
+)
+from .geometry import Exit, MeasurementArea, MeasurementLine, Obstacle, Room, StartArea
+from .io import PVDWriter, load_room, save_room, write_vtu
+from .mesh import BoundaryKind, TriMesh, triangulate
+
+__all__ = [
+    "__version__",
+    "BoundaryKind",
+    "Exit",
+    "GeometryError",
+    "MeasurementArea",
+    "MeasurementLine",
+    "MeshError",
+    "Obstacle",
+    "PVDWriter",
+    "ParameterError",
+    "PedmeshError",
+    "Room",
+    "RoomFileError",
+    "SimulationError",
+    "StartArea",
+    "TriMesh",
+    "UnsupportedFormatError",
+    "load_room",
+    "save_room",
+    "triangulate",
+    "write_vtu",
+]

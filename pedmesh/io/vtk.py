@@ -1,0 +1,174 @@
+"""VTK output that ParaView opens: ``.vtu`` meshes (meshio), ``.vtp`` point clouds
+(pyvista) and ``.pvd`` time-series collections.
+
+2-D vector fields, shape (n, 2), are written with a zero third component so that ParaView
+can draw them as glyphs. pyvista reads PVD but does not write it, so the small PVD writer
+is ours; it rewrites the index after every frame, so an interrupted run leaves a valid
+collection of the frames written so far.
+"""
+
+from __future__ import annotations
+
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+__all__ = ["mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter", "read_pvd_index"]
+
+ArrayMap = Mapping[str, np.ndarray] | None
+
+
+def _pad3(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a)
+    if a.ndim == 2 and a.shape[1] == 2:
+        return np.column_stack([a, np.zeros(len(a), dtype=a.dtype)])
+    return a
+
+
+def mesh_to_meshio(mesh, point_data: ArrayMap = None, cell_data: ArrayMap = None, *,
+                   boundary: bool = False):
+    """A :class:`meshio.Mesh` of a :class:`~pedmesh.mesh.TriMesh`.
+
+    Parameters
+    ----------
+    mesh
+        The triangle mesh.
+    point_data, cell_data
+        Fields per vertex (n, ...) and per triangle (m, ...).
+    boundary
+        Also write the boundary edges as line cells with the cell fields ``boundary_kind``
+        (1 wall, 2 obstacle, 3 exit) and ``boundary_owner`` (obstacle / exit number);
+        triangles get 0 and -1 there, and ``cell_data`` fields get NaN (or -1) on lines.
+    """
+    import meshio
+
+    pts = np.column_stack([mesh.points, np.zeros(mesh.n_points)])
+    cells = [("triangle", np.asarray(mesh.triangles))]
+    cd = {k: [_pad3(v)] for k, v in (cell_data or {}).items()}
+    for k, v in (cell_data or {}).items():
+        if len(v) != mesh.n_triangles:
+            raise ValueError(f"cell field '{k}' has {len(v)} values for {mesh.n_triangles} triangles")
+    for k, v in (point_data or {}).items():
+        if len(v) != mesh.n_points:
+            raise ValueError(f"point field '{k}' has {len(v)} values for {mesh.n_points} vertices")
+    if boundary:
+        b = mesh.boundary_edges
+        cells.append(("line", np.asarray(mesh.edges[b])))
+        for k, v in list(cd.items()):
+            arr = v[0]
+            fill = np.nan if np.issubdtype(arr.dtype, np.floating) else -1
+            pad = np.full((len(b),) + arr.shape[1:], fill, dtype=arr.dtype)
+            cd[k] = [arr, pad]
+        cd["boundary_kind"] = [np.zeros(mesh.n_triangles, np.int32),
+                               np.asarray(mesh.edge_kind[b], np.int32)]
+        cd["boundary_owner"] = [np.full(mesh.n_triangles, -1, np.int32),
+                                np.asarray(mesh.edge_owner[b], np.int32)]
+    pd = {k: _pad3(v) for k, v in (point_data or {}).items()}
+    return meshio.Mesh(pts, cells, point_data=pd, cell_data=cd)
+
+
+def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: ArrayMap = None,
+              *, boundary: bool = False) -> Path:
+    """Write a mesh with fields to a ``.vtu`` file (see :func:`mesh_to_meshio`)."""
+    m = mesh_to_meshio(mesh, point_data, cell_data, boundary=boundary)
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    m.write(tmp, file_format="vtu")
+    os.replace(tmp, path)
+    return path
+
+
+def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None) -> Path:
+    """Write a 2-D point cloud [m] with per-point fields to a ``.vtp`` file (pyvista)."""
+    import pyvista as pv
+
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    cloud = pv.PolyData(np.column_stack([pts, np.zeros(len(pts))]))
+    if len(pts):
+        cloud.verts = np.column_stack([np.ones(len(pts), np.int64), np.arange(len(pts))]).ravel()
+    for k, v in (point_data or {}).items():
+        cloud.point_data[k] = _pad3(v)
+    path = Path(path)
+    tmp = path.with_name(path.stem + ".part.vtp")
+    cloud.save(tmp, binary=True)
+    os.replace(tmp, path)
+    return path
+
+
+class PVDWriter:
+    """Write a time series as a ParaView ``.pvd`` collection.
+
+    Frames go to ``<stem>/<stem>_<frame>.vtu`` (or ``.vtp``) next to the ``.pvd`` file.
+
+    Examples
+    --------
+    >>> with PVDWriter("out/density.pvd") as w:              # doctest: +SKIP
+    ...     for t, rho in frames:
+    ...         w.write_mesh(t, mesh, cell_data={"rho": rho})
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        if self.path.suffix.lower() != ".pvd":
+            raise ValueError(f"a PVD collection needs a .pvd suffix, got {self.path}")
+        self.dir = self.path.with_suffix("")
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.entries: list[tuple[float, str]] = []
+        self._write_index()
+
+    def __enter__(self) -> "PVDWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.entries)
+
+    def _frame_path(self, ext: str) -> Path:
+        return self.dir / f"{self.dir.name}_{len(self.entries):06d}{ext}"
+
+    def write_mesh(self, t: float, mesh, point_data: ArrayMap = None,
+                   cell_data: ArrayMap = None) -> Path:
+        """Add a mesh frame at time ``t`` [s]."""
+        p = write_vtu(self._frame_path(".vtu"), mesh, point_data, cell_data)
+        return self.add_file(t, p)
+
+    def write_points(self, t: float, points: np.ndarray, point_data: ArrayMap = None) -> Path:
+        """Add a point-cloud frame at time ``t`` [s]."""
+        p = write_vtp(self._frame_path(".vtp"), points, point_data)
+        return self.add_file(t, p)
+
+    def add_file(self, t: float, file: str | Path) -> Path:
+        """Register an already written dataset file as the frame at time ``t`` [s]."""
+        rel = os.path.relpath(Path(file), self.path.parent)
+        self.entries.append((float(t), Path(rel).as_posix()))
+        self._write_index()
+        return Path(file)
+
+    def _write_index(self) -> None:
+        root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
+        coll = ET.SubElement(root, "Collection")
+        for t, f in self.entries:
+            ET.SubElement(coll, "DataSet", timestep=repr(t), group="", part="0", file=f)
+        ET.indent(root)
+        tmp = self.path.with_name(self.path.name + ".part")
+        ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8")
+        os.replace(tmp, self.path)
+
+    def close(self) -> None:
+        self._write_index()
+
+
+def read_pvd_index(path: str | Path) -> list[tuple[float, Path]]:
+    """(time, absolute file path) of every frame listed in a ``.pvd`` file."""
+    path = Path(path)
+    root = ET.parse(path).getroot()
+    return [
+        (float(ds.get("timestep")), path.parent / ds.get("file"))
+        for ds in root.iter("DataSet")
+    ]
