@@ -22,8 +22,29 @@ from .geometry import Exit, MeasurementArea, MeasurementLine, Obstacle, Room, St
 from .io import PVDWriter, load_room, save_room, write_vtu
 from .mesh import BoundaryKind, TriMesh, triangulate
 
+# heavy parts (numba kernels) load on first use, so that ``import pedmesh`` stays fast
+_LAZY = {
+    "solve_eikonal": "pedmesh.eikonal",
+    "EikonalSolver": "pedmesh.eikonal",
+    "DirectionField": "pedmesh.eikonal",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
+
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'pedmesh' has no attribute {name!r}")
+
+
 __all__ = [
     "__version__",
+    "DirectionField",
+    "EikonalSolver",
+    "solve_eikonal",
     "BoundaryKind",
     "Exit",
     "GeometryError",

@@ -47,3 +47,21 @@ def test_console_script_runs(geometries_dir):
                        capture_output=True, text=True)
     assert r.returncode == 2
     assert r.stderr.strip() == f"pedmesh: error: {geometries_dir / 'nope.json'}: no such file"
+
+
+def test_route_command(geometries_dir, tmp_path, capsys):
+    out = tmp_path / "route.vtu"
+    assert main(["route", str(geometries_dir / "example3.json"), "--max-area", "2", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "solve" in text and "distance to exit" in text
+    m = meshio.read(out)
+    assert m.point_data["phi"].min() == 0.0
+    assert 100 < m.point_data["phi"].max() < 102  # far corner (0, 0 or 50): about 100.5 m
+    d = m.point_data["direction"]
+    np.testing.assert_allclose(np.hypot(d[:, 0], d[:, 1]), 1.0, atol=1e-12)
+
+
+def test_route_unknown_exit(geometries_dir, tmp_path, capsys):
+    assert main(["route", str(geometries_dir / "example3.json"), "--exits", "exit-west",
+                 "-o", str(tmp_path / "r.vtu")]) == 2
+    assert "unknown exit 'exit-west'" in capsys.readouterr().err

@@ -16,6 +16,7 @@ from ..errors import PedmeshError
 # subcommand name -> module (each provides add_args(parser) and run(args) -> int)
 SUBCOMMANDS = {
     "mesh": "pedmesh.cli.mesh",
+    "route": "pedmesh.cli.route",
 }
 
 

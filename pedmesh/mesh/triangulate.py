@@ -22,6 +22,24 @@ __all__ = ["triangulate", "exit_size_field"]
 _MARKER_OFFSET = 2  # Triangle reserves markers 0 and 1
 
 
+def morton_keys(xy: np.ndarray, bits: int = 16) -> np.ndarray:
+    """Z-order (Morton) keys of 2-D points, for cache-friendly numbering."""
+    xy = np.asarray(xy, dtype=np.float64)
+    lo = xy.min(axis=0)
+    span = max(float((xy.max(axis=0) - lo).max()), 1e-300)
+    q = ((xy - lo) / span * (2**bits - 1)).astype(np.uint64)
+
+    def spread(v: np.ndarray) -> np.ndarray:
+        v = v & np.uint64(0xFFFF)
+        v = (v | (v << np.uint64(8))) & np.uint64(0x00FF00FF)
+        v = (v | (v << np.uint64(4))) & np.uint64(0x0F0F0F0F)
+        v = (v | (v << np.uint64(2))) & np.uint64(0x33333333)
+        v = (v | (v << np.uint64(1))) & np.uint64(0x55555555)
+        return v
+
+    return spread(q[:, 0]) | (spread(q[:, 1]) << np.uint64(1))
+
+
 def _pslg(room):
     """Vertices, segments, per-segment (kind, owner) and hole points of a room."""
     from ..geometry.room import EXIT_TOLERANCE
@@ -162,14 +180,23 @@ def triangulate(
     mk = np.asarray(out["segment_markers"], np.int64).ravel() - _MARKER_OFFSET
     if np.any((mk < 0) | (mk >= len(tags))):
         raise MeshError(f"room '{room.name}': Triangle returned an unknown segment marker")
-    # drop vertices no triangle uses (Triangle keeps duplicated input vertices)
+    # drop vertices no triangle uses (Triangle keeps duplicated input vertices) and number
+    # vertices and triangles along a space-filling curve, so that neighbours are close in
+    # memory for every kernel that walks the mesh
+    pts = np.asarray(out["vertices"], np.float64)
     tri = np.asarray(out["triangles"], np.int64)
-    used = np.zeros(len(out["vertices"]), bool)
+    used = np.zeros(len(pts), bool)
     used[tri.ravel()] = True
-    renum = np.cumsum(used) - 1
+    keep = np.flatnonzero(used)
+    order = keep[np.argsort(morton_keys(pts[keep]), kind="stable")]
+    renum = np.full(len(pts), -1, np.int64)
+    renum[order] = np.arange(len(order))
+    tri = renum[tri]
+    new_pts = pts[order]
+    tri = tri[np.argsort(morton_keys(new_pts[tri].mean(axis=1)), kind="stable")]
     return TriMesh(
-        points=np.asarray(out["vertices"])[used],
-        triangles=renum[tri],
+        points=new_pts,
+        triangles=tri,
         segments=renum[seg_out],
         segment_kind=tags[mk, 0],
         segment_owner=tags[mk, 1],

@@ -68,6 +68,7 @@ class TriMesh:
     exit_names: tuple[str, ...] = ()
     obstacle_names: tuple[str, ...] = ()
     room: Any = field(default=None, repr=False)
+    _cache: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
         pts = np.ascontiguousarray(self.points, dtype=np.float64)

@@ -1,0 +1,223 @@
+"""The desired walking direction ``e = -grad(phi) / |grad(phi)|`` from a route potential.
+
+Three flavours, all unit vectors:
+
+* per triangle: the P1 gradient of the vertex values (piecewise constant);
+* per vertex: the area-weighted mean of the gradients of the triangles around the vertex,
+  corrected on the boundary: on an exit vertex the direction is the outward normal of the
+  exit (pedestrians leave through it), on a wall or obstacle vertex it is turned onto the
+  nearer wall direction if it pointed out of the walkable wedge at that vertex;
+* at arbitrary points (pedestrians): the vertex directions interpolated barycentrically in
+  the containing triangle and normalised. This field is continuous, so steering is smooth.
+  In a triangle with a wall edge the component pointing into that wall is removed with
+  weight ``1 - lambda`` (``lambda`` the barycentric coordinate of the vertex opposite the
+  wall), so on the wall itself the direction never points into it, and the correction
+  fades out across the triangle.
+
+Where ``phi`` is infinite (no exit reachable) the direction is zero.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+import scipy.sparse as sp
+
+from ..mesh.trimesh import BoundaryKind, TriMesh
+
+__all__ = ["DirectionField", "p1_gradients"]
+
+
+def _basis_gradients(mesh: TriMesh) -> np.ndarray:
+    """(m, 3, 2) gradients of the barycentric coordinates in each triangle [1/m]."""
+    cache = mesh._cache
+    if "p1_grad" not in cache:
+        p = mesh.points[mesh.triangles]
+        e = p[:, [2, 0, 1]] - p[:, [1, 2, 0]]  # edge opposite vertex i, counter-clockwise
+        g = np.stack([-e[..., 1], e[..., 0]], axis=-1) / (2.0 * mesh.areas[:, None, None])
+        # grad(lambda_i) points from the opposite edge towards vertex i: (-e_y, e_x)
+        cache["p1_grad"] = np.ascontiguousarray(g)
+    return cache["p1_grad"]
+
+
+def p1_gradients(mesh: TriMesh, phi: np.ndarray) -> np.ndarray:
+    """(m, 2) gradient of the P1 interpolant of vertex values ``phi`` in each triangle."""
+    g = _basis_gradients(mesh)
+    return np.einsum("tij,ti->tj", g, phi[mesh.triangles])
+
+
+def _vertex_averaging(mesh: TriMesh) -> sp.csr_matrix:
+    cache = mesh._cache
+    if "vertex_avg" not in cache:
+        rows = mesh.triangles.ravel()
+        cols = np.repeat(np.arange(mesh.n_triangles), 3)
+        w = np.repeat(mesh.areas, 3)
+        M = sp.csr_matrix((w, (rows, cols)), shape=(mesh.n_points, mesh.n_triangles))
+        s = np.asarray(M.sum(axis=1)).ravel()
+        cache["vertex_avg"] = sp.diags(1.0 / s) @ M
+    return cache["vertex_avg"]
+
+
+def _boundary_wedges(mesh: TriMesh):
+    """Per boundary vertex: the directions to its next and previous boundary neighbours
+    (walkable area on the left, so the walkable wedge turns counter-clockwise from
+    ``d_next`` to ``d_prev``), and the outward exit normal where it lies on an exit."""
+    cache = mesh._cache
+    if "wedges" in cache:
+        return cache["wedges"]
+    b = mesh.boundary_edges
+    t = mesh.edge_triangles[b, 0]
+    e = mesh.edges[b]
+    # orient each boundary edge with the walkable area on its left (counter-clockwise)
+    n_out = mesh.edge_normals[b]
+    d = mesh.points[e[:, 1]] - mesh.points[e[:, 0]]
+    left = d[:, 0] * n_out[:, 1] - d[:, 1] * n_out[:, 0] < 0  # outward normal on the right
+    a = np.where(left, e[:, 0], e[:, 1])
+    c = np.where(left, e[:, 1], e[:, 0])
+    n = mesh.n_points
+    nxt = np.full(n, -1, np.int64)
+    prv = np.full(n, -1, np.int64)
+    nxt[a] = c
+    prv[c] = a
+    verts = np.flatnonzero((nxt >= 0) & (prv >= 0))
+    dn = mesh.points[nxt[verts]] - mesh.points[verts]
+    dp = mesh.points[prv[verts]] - mesh.points[verts]
+    dn /= np.hypot(dn[:, 0], dn[:, 1])[:, None]
+    dp /= np.hypot(dp[:, 0], dp[:, 1])[:, None]
+    # outward exit normals summed over the exit edges at each vertex
+    ex = mesh.edge_kind[b] == BoundaryKind.EXIT
+    exit_n = np.zeros((n, 2))
+    np.add.at(exit_n, e[ex, 0], n_out[ex])
+    np.add.at(exit_n, e[ex, 1], n_out[ex])
+    del t
+    cache["wedges"] = (verts, dn, dp, exit_n)
+    return cache["wedges"]
+
+
+def _ccw_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Counter-clockwise angle in [0, 2 pi) from unit vectors a to b."""
+    ang = np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b))
+    return np.mod(ang, 2 * np.pi)
+
+
+def _normalise(v: np.ndarray) -> np.ndarray:
+    nrm = np.hypot(v[:, 0], v[:, 1])
+    out = np.zeros_like(v)
+    ok = nrm > 0
+    out[ok] = v[ok] / nrm[ok, None]
+    return out
+
+
+@nb.njit(cache=True)
+def _interpolate(points, tri_idx, triangles, xy, vdir, tdir, wall_n, out):
+    for k in range(tri_idx.shape[0]):
+        t = tri_idx[k]
+        out[k, 0] = 0.0
+        out[k, 1] = 0.0
+        if t < 0:
+            continue
+        a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        ax, ay = xy[a, 0], xy[a, 1]
+        bx, by = xy[b, 0], xy[b, 1]
+        cx, cy = xy[c, 0], xy[c, 1]
+        det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay)
+        px, py = points[k, 0], points[k, 1]
+        lam1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) / det
+        lam2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) / det
+        lam0 = 1.0 - lam1 - lam2
+        ex = lam0 * vdir[a, 0] + lam1 * vdir[b, 0] + lam2 * vdir[c, 0]
+        ey = lam0 * vdir[a, 1] + lam1 * vdir[b, 1] + lam2 * vdir[c, 1]
+        # wall edge opposite local vertex i: remove the into-wall component, fully on the
+        # wall (lambda_i = 0) and fading out towards the opposite vertex
+        for i in range(3):
+            nx, ny = wall_n[t, i, 0], wall_n[t, i, 1]
+            if nx == 0.0 and ny == 0.0:
+                continue
+            lam = lam0 if i == 0 else (lam1 if i == 1 else lam2)
+            s = ex * nx + ey * ny
+            if s > 0.0:
+                w = 1.0 - min(max(lam, 0.0), 1.0)
+                ex -= w * s * nx
+                ey -= w * s * ny
+        nrm = np.sqrt(ex * ex + ey * ey)
+        if nrm <= 1e-12:
+            # a ridge on a wall (e.g. the middle of a pillar face, where going left and
+            # right are equally good): use the triangle's own direction, along the wall
+            ex, ey = tdir[t, 0], tdir[t, 1]
+            for i in range(3):
+                nx, ny = wall_n[t, i, 0], wall_n[t, i, 1]
+                s = ex * nx + ey * ny
+                if s > 0.0:
+                    ex -= s * nx
+                    ey -= s * ny
+            nrm = np.sqrt(ex * ex + ey * ey)
+        if nrm > 1e-12:
+            out[k, 0] = ex / nrm
+            out[k, 1] = ey / nrm
+
+
+def _wall_normals(mesh: TriMesh) -> np.ndarray:
+    """(m, 3, 2) outward normal of the wall/obstacle edge opposite each corner, else 0."""
+    cache = mesh._cache
+    if "wall_normals" not in cache:
+        e = mesh.triangle_edges
+        kind = mesh.edge_kind[e]
+        solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
+        out = np.where(solid[..., None], mesh.edge_normals[e], 0.0)
+        cache["wall_normals"] = np.ascontiguousarray(out)
+    return cache["wall_normals"]
+
+
+class DirectionField:
+    """Unit desired-direction field of a route potential (see module docstring).
+
+    Parameters
+    ----------
+    mesh
+        The triangle mesh.
+    phi
+        (n,) potential at the vertices (e.g. from :func:`~pedmesh.eikonal.solve_eikonal`).
+    """
+
+    def __init__(self, mesh: TriMesh, phi: np.ndarray) -> None:
+        self.mesh = mesh
+        phi = np.asarray(phi, dtype=np.float64)
+        finite = np.isfinite(phi)
+        tri_ok = finite[mesh.triangles].all(axis=1)
+        g = p1_gradients(mesh, np.where(finite, phi, 0.0))
+        g[~tri_ok] = 0.0
+        #: (m, 2) P1 gradient of phi per triangle.
+        self.triangle_gradients = g
+        #: (m, 2) unit direction -grad(phi)/|grad(phi)| per triangle.
+        self.triangle_directions = _normalise(-g)
+        G = _vertex_averaging(mesh) @ (-g)
+        e = _normalise(G)
+        verts, dn, dp, exit_n = _boundary_wedges(mesh)
+        ev = e[verts]
+        wedge = _ccw_angle(dn, dp)
+        ang = _ccw_angle(dn, ev)
+        outside = (ang > wedge) & (np.hypot(ev[:, 0], ev[:, 1]) > 0)
+        # turn onto the nearer wedge side: d_next (angle 0) or d_prev (angle = wedge)
+        to_next = (2 * np.pi - ang) < (ang - wedge)
+        ev[outside & to_next] = dn[outside & to_next]
+        ev[outside & ~to_next] = dp[outside & ~to_next]
+        e[verts] = ev
+        on_exit = np.hypot(exit_n[:, 0], exit_n[:, 1]) > 0
+        e[on_exit] = _normalise(exit_n[on_exit])
+        e[~finite] = 0.0
+        #: (n, 2) unit direction at the vertices.
+        self.vertex_directions = np.ascontiguousarray(e)
+
+    def at(self, points: np.ndarray, triangles: np.ndarray | None = None) -> np.ndarray:
+        """Unit directions (p, 2) at arbitrary points [m]; zero outside the mesh.
+
+        ``triangles`` (the containing triangle of each point) saves the point location when
+        the caller already knows it.
+        """
+        pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 2))
+        tri = self.mesh.locate(pts) if triangles is None else np.asarray(triangles, np.int64)
+        out = np.empty_like(pts)
+        _interpolate(pts, np.ascontiguousarray(tri), self.mesh.triangles, self.mesh.points,
+                     self.vertex_directions, self.triangle_directions,
+                     _wall_normals(self.mesh), out)
+        return out
