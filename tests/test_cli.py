@@ -65,3 +65,86 @@ def test_route_unknown_exit(geometries_dir, tmp_path, capsys):
     assert main(["route", str(geometries_dir / "example3.json"), "--exits", "exit-west",
                  "-o", str(tmp_path / "r.vtu")]) == 2
     assert "unknown exit 'exit-west'" in capsys.readouterr().err
+
+
+def test_run_command_writes_the_contract(geometries_dir, tmp_path, capsys):
+    import json
+
+    import pyvista as pv
+
+    out = tmp_path / "cb"
+    assert main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--model", "sfm",
+                 "--out", str(out), "-q", "--param", "output_interval=5"]) == 0
+    text = capsys.readouterr().out
+    assert "150 of 150 out (finished)" in text
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("model", "n_initial", "n_evacuated", "t_evac_50", "t_evac_90", "t_evac_100",
+                "steps", "dt", "wall_time_s", "parameters"):
+        assert key in s
+    assert s["model"] == "sfm" and s["n_evacuated"] == 150 and s["status"] == "finished"
+    assert s["parameters"]["A"] == 2000.0 and s["parameters"]["output_interval"] == 5.0
+    assert s["t_evac_50"] < s["t_evac_90"] < s["t_evac_100"]
+    rows = (out / "evacuation.csv").read_text().splitlines()
+    assert rows[0] == "t,evacuated"
+    t = np.array([float(r.split(",")[0]) for r in rows[1:]])
+    n = np.array([float(r.split(",")[1]) for r in rows[1:]])
+    assert np.diff(t).max() <= 0.5 + 1e-9 and n[-1] == 150 and np.all(np.diff(n) >= 0)
+    reader = pv.PVDReader(out / "pedestrians.pvd")
+    reader.set_active_time_value(reader.time_values[1])
+    cloud = reader.read()[0]
+    assert {"velocity", "speed", "density"} <= set(cloud.point_data.keys())
+    dens = pv.PVDReader(out / "density.pvd")
+    dens.set_active_time_value(dens.time_values[0])
+    assert dens.read()[0].point_data["density"].max() > 1.0
+    traj = (out / "trajectories.txt").read_text().splitlines()
+    assert any("framerate: 0.2" in line for line in traj[:4])
+
+
+def test_trajectories_load_in_pedpy(geometries_dir, tmp_path):
+    pedpy = pytest.importorskip("pedpy")
+    out = tmp_path / "cb"
+    assert main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--out", str(out),
+                 "-q", "--t-end", "5", "--param", "output_interval=0.5"]) == 0
+    traj = pedpy.load_trajectory_from_txt(trajectory_file=out / "trajectories.txt")
+    assert traj.frame_rate == 2.0
+    assert len(traj.data) == 150 * 11 and set(traj.data.columns) >= {"id", "frame", "x", "y"}
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["--param", "foo=1"], "unknown parameter 'foo'"),
+    (["--param", "dt=abc"], "parameter 'dt': 'abc' is not a number"),
+    (["--param", "dt"], "--param expects NAME=VALUE, got 'dt'"),
+    (["--param", "tau=-1"], "parameter 'tau' must be positive"),
+    (["--model", "nope"], "unknown model 'nope'"),
+    (["--t-end", "-5"], "t_end must be a positive number"),
+])
+def test_run_bad_arguments_are_one_line(geometries_dir, tmp_path, capsys, args, message):
+    status = main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--out",
+                   str(tmp_path / "x"), "-q", *args])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2
+    assert len(err) == 1 and message in err[0], err
+
+
+def test_run_survives_sigterm(geometries_dir, tmp_path):
+    import json
+    import signal
+    import time
+
+    out = tmp_path / "ex2"
+    proc = subprocess.Popen([sys.executable, "-m", "pedmesh", "run",
+                             str(geometries_dir / "example2.json"), "--out", str(out), "-q"],
+                            stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    csv = out / "evacuation.csv"
+    deadline = time.time() + 180
+    while time.time() < deadline:
+        if csv.exists() and len(csv.read_text().splitlines()) > 25:
+            break
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert len(err.strip().splitlines()) == 1 and "interrupted at t =" in err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "interrupted" and s["t_stop"] >= 2.4
+    assert len(csv.read_text().splitlines()) > 25

@@ -17,6 +17,7 @@ from ..errors import PedmeshError
 SUBCOMMANDS = {
     "mesh": "pedmesh.cli.mesh",
     "route": "pedmesh.cli.route",
+    "run": "pedmesh.cli.run",
 }
 
 
@@ -69,3 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         where = f" {exc.filename}" if getattr(exc, "filename", None) else ""
         print(f"pedmesh: error:{where} {exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Exception as exc:  # a bug: still one line, with a way to see more
+        if debug:
+            raise
+        print(f"pedmesh: internal error: {type(exc).__name__}: {exc} "
+              "(rerun with --debug for the traceback; please report it)", file=sys.stderr)
+        return 1

@@ -89,8 +89,9 @@ def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None)
     cloud = pv.PolyData(np.column_stack([pts, np.zeros(len(pts))]))
     if len(pts):
         cloud.verts = np.column_stack([np.ones(len(pts), np.int64), np.arange(len(pts))]).ravel()
-    for k, v in (point_data or {}).items():
-        cloud.point_data[k] = _pad3(v)
+    if len(pts):  # (VTK cannot hold empty arrays: an empty frame has no fields)
+        for k, v in (point_data or {}).items():
+            cloud.point_data[k] = _pad3(v)
     path = Path(path)
     tmp = path.with_name(path.stem + ".part.vtp")
     cloud.save(tmp, binary=True)

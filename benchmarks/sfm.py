@@ -1,0 +1,198 @@
+"""Social force model benchmark.
+
+1. The paper's Example 2 end to end (N = 2400, full model: SSP-RK3, kernel density,
+   rerouting every 1 s, walls from the mesh): wall time, steps, evacuation times.
+2. The cost of one step with all 2400 pedestrians present, split into forces, density,
+   desired direction, settling (exits/reflection) and routing (amortised).
+3. If jupedsim is installed (``pip install -e ".[bench]"``): the same scenario in its
+   SocialForceModel (same parameters, dt 0.01, forward Euler, no rerouting) in the same
+   run, and the ratio of wall times.
+4. Cost per agent-step from 2.4k to 100k agents in a large hall.
+
+    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling]
+
+Goals (issue 4): <= 1.5 ms per step with 2400 agents including density and rerouting;
+Example 2 end to end <= 0.25 x JuPedSim's wall time; cost per agent-step flat within 1.3x
+from 2.4k to 100k agents.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pedmesh import Exit, Room, StartArea, load_room
+from pedmesh.micro import Simulation
+from pedmesh.micro import _kernels as K
+from pedmesh.run import evacuation_times
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def example2_end_to_end():
+    room = load_room(ROOT / "geometries" / "example2.json")
+    mesh = room.mesh()
+    t0 = time.perf_counter()
+    sim = Simulation(mesh)
+    t_setup = time.perf_counter() - t0
+    sim.step()  # compile or load the numba cache
+    t0 = time.perf_counter()
+    sim.run(1000.0)
+    wall = time.perf_counter() - t0 + t_setup
+    t50, t90, t100 = evacuation_times(sim.exit_time, sim.n_initial)
+    return room, mesh, dict(wall=wall, setup=t_setup, steps=sim.steps, t50=t50, t90=t90,
+                            t100=t100, timers=sim.timers)
+
+
+def step_split(mesh, n_steps=200):
+    """Per-step cost with all 2400 present (first seconds of Example 2)."""
+    sim = Simulation(mesh)
+    for _ in range(20):
+        sim.step()
+    f0, s0, r0, st0 = sim.timers.forces, sim.timers.settle, sim.timers.routing, sim.timers.steps
+    t0 = time.perf_counter()
+    for _ in range(n_steps):
+        sim.step()
+    total = (time.perf_counter() - t0) / n_steps
+    assert sim.n == 2400
+    per = {
+        "step (all included)": total,
+        "rk3 (3 force evaluations)": (sim.timers.forces - f0) / n_steps,
+        "settle (exits, reflection)": (sim.timers.settle - s0) / n_steps,
+        "routing (amortised)": (sim.timers.routing - r0) / n_steps,
+    }
+    # inside one force evaluation
+    p, n, w = sim.params, sim.n, sim.walls
+    F = np.zeros((n, 2))
+    rho = np.zeros(n)
+    K.build_cells(sim.x, n, sim._cx0, sim._cy0, sim._cinv, sim._cnx, sim._cny, sim._cell_start,
+                  sim._cell_order)
+    npairs = K.build_pairs(sim.x, n, sim._cell_start, sim._cell_order, sim._cnx, sim._cny,
+                           max(sim.rc_f, sim.rc_d) + 0.2, sim._pi, sim._pj)
+
+    def tm(fn, r=100):
+        fn()
+        t = time.perf_counter()
+        for _ in range(r):
+            fn()
+        return (time.perf_counter() - t) / r
+
+    both = tm(lambda: K.pair_accel_list(sim.x, sim.v, n, sim._pi, sim._pj, npairs, sim.rc_f,
+                                        sim.rc_d, 2 * p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, F, rho))
+    forces = tm(lambda: K.pair_accel_list(sim.x, sim.v, n, sim._pi, sim._pj, npairs, sim.rc_f,
+                                          0.0, 2 * p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, F, rho))
+    walls = tm(lambda: K.wall_accel(sim.x, sim.v, n, w.piece, w.next_seg, w.x0, w.y0, w.inv_cell,
+                                    w.nx, w.ny, w.cell_ptr, w.cell_seg, sim.rc_w, p.r, p.A, p.B,
+                                    p.k, p.kappa, p.m, F))
+    lists = tm(lambda: (K.build_cells(sim.x, n, sim._cx0, sim._cy0, sim._cinv, sim._cnx, sim._cny,
+                                      sim._cell_start, sim._cell_order),
+                        K.build_pairs(sim.x, n, sim._cell_start, sim._cell_order, sim._cnx,
+                                      sim._cny, max(sim.rc_f, sim.rc_d) + 0.2, sim._pi, sim._pj)))
+    per["  cell list + pair list (once per step)"] = lists
+    per["  pair forces (3 per step)"] = 3 * forces
+    per["  density (3 per step)"] = 3 * (both - forces)
+    per["  walls (3 per step)"] = 3 * walls
+    t_route = tm(sim._route, 5)
+    per["  one route solve (density at vertices + eikonal + directions)"] = t_route
+    return per, npairs
+
+
+def jupedsim_example2():
+    import jupedsim as jps
+    import shapely
+
+    room = load_room(ROOT / "geometries" / "example2.json")
+    sim = jps.Simulation(model=jps.SocialForceModel(body_force=1.2e5, friction=2.4e5),
+                         geometry=shapely.Polygon(room.outline), dt=0.01)
+    exit_id = sim.add_exit_stage(shapely.Polygon([(99.5, 20), (100, 20), (100, 30), (99.5, 30)]))
+    journey = sim.add_journey(jps.JourneyDescription([exit_id]))
+    for x, y in room.initial_positions():
+        sim.add_agent(jps.SocialForceModelAgentParameters(
+            journey_id=journey, stage_id=exit_id, position=(float(x), float(y)),
+            orientation=(1.0, 0.0), mass=60.0, desired_speed=1.034, reaction_time=0.5,
+            agent_scale=2000.0, obstacle_scale=2000.0, force_distance=0.08, radius=0.15))
+    t0 = time.perf_counter()
+    for _ in range(100):
+        sim.iterate()
+    per_step = (time.perf_counter() - t0) / 100
+    n0 = sim.agent_count()
+    while sim.agent_count() > 0 and sim.elapsed_time() < 1000:
+        sim.iterate()
+    wall = time.perf_counter() - t0
+    return dict(wall=wall, steps=sim.iteration_count(), t_end=sim.elapsed_time(),
+                per_step=per_step, n_first=n0)
+
+
+def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100):
+    """Cost per agent-step in a hall big enough for 100k agents at about 1 ped/m^2."""
+    out = []
+    for N in sizes:
+        side = int(np.ceil(np.sqrt(N)))
+        W = side + 40.0
+        H = side + 10.0
+        room = Room([(0, 0), (W, 0), (W, H), (0, H)],
+                    exits=[Exit("east", [(W, 0.3 * H), (W, 0.7 * H)])],
+                    start_areas=[StartArea("crowd", [(2, 5), (2 + side, 5), (2 + side, 5 + side),
+                                                     (2, 5 + side)], count=N)])
+        mesh = room.mesh(max_area=2.0)
+        sim = Simulation(mesh)
+        for _ in range(5):
+            sim.step()
+        r0 = sim.timers.routing
+        t0 = time.perf_counter()
+        for _ in range(n_steps):
+            sim.step()
+        dt = time.perf_counter() - t0
+        route = sim.timers.routing - r0
+        out.append((N, dt / n_steps, dt / n_steps / sim.n, route / n_steps, mesh.n_points))
+    return out
+
+
+def main(skip_jupedsim: bool = False, skip_scaling: bool = False) -> None:
+    room, mesh, e2 = example2_end_to_end()
+    print(f"Example 2 (N = 2400, mesh {mesh.n_points} vertices / {mesh.n_triangles} triangles)")
+    print(f"  pedmesh sfm: {e2['wall']:.1f} s wall for {e2['steps']} steps "
+          f"({1e3 * e2['wall'] / e2['steps']:.2f} ms/step average), set-up {e2['setup']:.2f} s; "
+          f"T50 {e2['t50']:.1f} s, T90 {e2['t90']:.1f} s, T100 {e2['t100']:.1f} s")
+    per, npairs = step_split(mesh)
+    print(f"\nOne step with all 2400 present ({npairs} listed pairs):")
+    for k, v in per.items():
+        print(f"  {k:<62s} {1e3 * v:7.3f} ms")
+    ok = per["step (all included)"] <= 1.5e-3
+    print(f"  goal <= 1.5 ms per step: {'met' if ok else 'NOT met'}")
+    if not skip_jupedsim:
+        try:
+            import jupedsim  # noqa: F401
+        except ImportError:
+            print("\njupedsim not installed (pip install -e '.[bench]'): comparison skipped")
+        else:
+            j = jupedsim_example2()
+            ratio = e2["wall"] / j["wall"]
+            print(f"\nJuPedSim {jupedsim.__version__} SocialForceModel, same scenario (dt 0.01, "
+                  "Euler, no rerouting):")
+            print(f"  {j['wall']:.1f} s wall for {j['steps']} steps (t = {j['t_end']:.1f} s), "
+                  f"{1e3 * j['per_step']:.2f} ms/step with {j['n_first']} agents")
+            print(f"  ratio pedmesh / JuPedSim wall time: {ratio:.3f} (goal <= 0.25: "
+                  f"{'met' if ratio <= 0.25 else 'NOT met'})")
+    if not skip_scaling:
+        print("\nScaling in a hall at about 1 ped/m^2 (routing amortised, re-solved every 1 s):")
+        print("| agents | mesh vertices | ms/step | ns per agent-step | routing ms/step |")
+        print("|---:|---:|---:|---:|---:|")
+        rows = scaling()
+        for N, t, per_agent, route, nv in rows:
+            print(f"| {N} | {nv} | {1e3 * t:.2f} | {1e9 * per_agent:.0f} | {1e3 * route:.3f} |")
+        costs = [r[2] for r in rows]
+        spread = max(costs) / min(costs)
+        print(f"max/min cost per agent-step: {spread:.2f} (goal <= 1.3: "
+              f"{'met' if spread <= 1.3 else 'NOT met'})")
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--skip-jupedsim", action="store_true")
+    ap.add_argument("--skip-scaling", action="store_true")
+    a = ap.parse_args()
+    main(a.skip_jupedsim, a.skip_scaling)

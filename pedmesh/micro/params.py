@@ -1,0 +1,120 @@
+"""Parameters of the social force model (paper Table 1) and of its numerics.
+
+Every field carries its SI unit and the paper's symbol. Both dataclasses are frozen;
+:func:`with_overrides` builds new ones from ``NAME=VALUE`` strings (the CLI's ``--param``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Iterable
+
+from ..errors import ParameterError
+
+__all__ = ["SocialForceParams", "SFMNumerics", "with_overrides", "parse_param_overrides"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SocialForceParams:
+    """Physical parameters of the social force model (paper Table 1 defaults)."""
+
+    m: float = 60.0  #: pedestrian mass [kg], m
+    tau: float = 0.5  #: relaxation time [s], tau
+    beta: float = 0.05  #: speed-density parameter [m^2/ped], beta in U_e = U_f exp(-beta rho)
+    U_f: float = 1.034  #: free-flow speed [m/s], U_f
+    R: float = 0.7  #: width of the Gaussian density kernel [m], R (eq4)
+    A: float = 2000.0  #: strength of the social repulsion [N], A
+    B: float = 0.08  #: range of the social repulsion [m], B
+    r: float = 0.15  #: body radius [m], r_i (so r_ij = 2 r = 0.3 m)
+    k: float = 1.2e5  #: body (contact) force constant [kg/s^2], k
+    kappa: float = 2.4e5  #: sliding friction constant [kg/(m s)], kappa
+
+    def __post_init__(self) -> None:
+        _check_positive(self)
+
+    def desired_speed(self, rho):
+        """U_e(rho) = U_f exp(-beta rho) [m/s] (paper eq_desired_speed)."""
+        import numpy as np
+
+        return self.U_f * np.exp(-self.beta * np.asarray(rho))
+
+
+@dataclass(frozen=True, kw_only=True)
+class SFMNumerics:
+    """Numerical settings of a social force run.
+
+    The defaults were chosen by convergence checks (see ``benchmarks/sfm.py`` and the
+    README): halving ``dt`` or re-solving the routes every step changes the evacuation
+    curve of the paper's Example 2 by less than 1 %.
+    """
+
+    dt: float = 0.01  #: time step [s] of the SSP-RK3 integrator
+    #: interval [s] between re-solves of the route potential (0 = every step)
+    route_interval: float = 1.0
+    #: interaction cut-off [m]: A exp((0.3 - 1.2)/0.08) = 0.026 N, 2e-4 of the driving
+    #: force m U_f / tau = 124 N
+    force_cutoff: float = 1.2
+    #: density-kernel cut-off in units of R: exp(-3^2) = 1.2e-4 of the kernel mass is cut
+    density_cutoff: float = 3.0
+    #: a speed above this [m/s] stops the run as a blow-up
+    max_speed: float = 10.0
+    #: interval [s] between output frames (VTK, trajectories)
+    output_interval: float = 1.0
+    #: interval [s] between rows of evacuation.csv
+    sample_interval: float = 0.1
+    #: initial pedestrians may overlap their bodies by at most this much [m]
+    overlap_tolerance: float = 0.05
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+                raise ParameterError(f"parameter '{f.name}' must be a finite number, got {v!r}")
+        for name in ("dt", "force_cutoff", "density_cutoff", "max_speed", "output_interval",
+                     "sample_interval"):
+            if not getattr(self, name) > 0:
+                raise ParameterError(f"parameter '{name}' must be positive, got {getattr(self, name)!r}")
+        for name in ("route_interval", "overlap_tolerance"):
+            if getattr(self, name) < 0:
+                raise ParameterError(f"parameter '{name}' must be >= 0, got {getattr(self, name)!r}")
+
+
+def _check_positive(obj: Any) -> None:
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            raise ParameterError(f"parameter '{f.name}' must be a finite number, got {v!r}")
+        if not v > 0:
+            raise ParameterError(f"parameter '{f.name}' must be positive, got {v!r}")
+
+
+def parse_param_overrides(items: Iterable[str]) -> dict[str, float]:
+    """``["A=1500", "dt=0.005"]`` -> ``{"A": 1500.0, "dt": 0.005}`` with clear errors."""
+    out: dict[str, float] = {}
+    for item in items or []:
+        if "=" not in item:
+            raise ParameterError(f"--param expects NAME=VALUE, got '{item}'")
+        name, _, value = item.partition("=")
+        name = name.strip()
+        try:
+            out[name] = float(value)
+        except ValueError:
+            raise ParameterError(f"parameter '{name}': '{value}' is not a number") from None
+    return out
+
+
+def with_overrides(overrides: dict[str, float], *classes_and_defaults) -> list:
+    """Split ``overrides`` over the given dataclass instances; unknown names are an error."""
+    known = {f.name for obj in classes_and_defaults for f in fields(obj)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ParameterError(
+            f"unknown parameter '{unknown[0]}' (known: {', '.join(sorted(known))})"
+        )
+    out = []
+    for obj in classes_and_defaults:
+        mine = {k: v for k, v in overrides.items() if k in {f.name for f in fields(obj)}}
+        out.append(dataclasses.replace(obj, **mine))
+    return out

@@ -1,0 +1,348 @@
+"""The social force model on a triangle mesh (paper eq. sf, with the eikonal route choice).
+
+.. math::
+
+    \\frac{dx_i}{dt} = v_i, \\qquad
+    m\\frac{dv_i}{dt} = m\\frac{U_e(\\rho_i) e(x_i) - v_i}{\\tau}
+        + \\sum_{j \\ne i} f_{ij} + \\sum_{\\text{walls}} f_i^{wall}
+
+* ``f_ij = [A exp((r_ij - d)/B) + k g(r_ij - d)] n_ij + kappa g(r_ij - d) <v_j - v_i, t_ij> t_ij``
+  (evaluated once per pair, cut off at ``force_cutoff``);
+* walls: the same form for every wall and obstacle edge of the mesh (distance to the
+  segment, a shared corner counted once), with friction ``-kappa g(r_i - d) <v_i, t> t``
+  against the resting wall. The paper prints ``+kappa ...`` for the wall friction, which
+  would accelerate a pedestrian sliding along a wall; the pair term with v_wall = 0 gives
+  the minus sign used here. Exit edges exert no force;
+* ``U_e = U_f exp(-beta rho)`` with ``rho`` the Gaussian kernel density (eq3, eq4, the
+  pedestrian itself included), ``e = -grad(phi)/|grad(phi)|`` with ``|grad phi| = 1/U_e``
+  solved on the mesh from the kernel density at the vertices, every ``route_interval`` s;
+* Shu-Osher SSP-RK3 in time; after each step a pedestrian whose step crossed a wall is
+  reflected (displacement and velocity), and one whose step crossed an exit is removed
+  with its exit time (interpolated within the step) and exit.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..errors import SimulationError
+from ..mesh.trimesh import TriMesh
+from .params import SFMNumerics, SocialForceParams
+from .walls import WallSet
+
+__all__ = ["Simulation", "PAIR_SKIN"]
+
+#: Verlet skin [m] of the per-step pair list (rebuilt within a step if anyone moves more
+#: than half of it)
+PAIR_SKIN = 0.2
+
+
+@dataclass
+class _Timers:
+    forces: float = 0.0
+    settle: float = 0.0
+    routing: float = 0.0
+    steps: int = 0
+    routes: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+class Simulation:
+    """A social force simulation on a mesh.
+
+    Parameters
+    ----------
+    mesh
+        The room's triangle mesh (``mesh.room`` supplies the start areas if ``positions`` is
+        not given).
+    positions
+        (N, 2) initial positions [m]; default: the room's start areas.
+    velocities
+        (N, 2) initial velocities [m/s]; default: at rest.
+    params
+        Physical parameters (paper Table 1 by default).
+    numerics
+        Time step, routing interval, cut-offs, output intervals.
+    desired_velocity
+        A constant desired velocity (2,) [m/s] replacing ``U_e e`` (e.g. for the paper's
+        Proposition on moments); default: the eikonal route choice.
+    reroute
+        Re-solve the route potential from the current density (default). ``False`` keeps
+        the routes of the initial crowd (static routes).
+
+    Raises
+    ------
+    SimulationError
+        A start position is outside the walkable area or two pedestrians overlap by more
+        than ``numerics.overlap_tolerance``.
+    """
+
+    model_name = "sfm"
+
+    def __init__(self, mesh: TriMesh, positions: np.ndarray | None = None,
+                 velocities: np.ndarray | None = None, *,
+                 params: SocialForceParams | None = None,
+                 numerics: SFMNumerics | None = None,
+                 desired_velocity: np.ndarray | None = None,
+                 reroute: bool = True) -> None:
+        self.mesh = mesh
+        self.params = params or SocialForceParams()
+        self.numerics = numerics or SFMNumerics()
+        p, nm = self.params, self.numerics
+        if positions is None:
+            if mesh.room is None or not mesh.room.start_areas:
+                raise SimulationError("no start positions: give positions or a room with start areas")
+            positions = mesh.room.initial_positions()
+        x = np.array(positions, dtype=np.float64).reshape(-1, 2)
+        N = len(x)
+        if N == 0:
+            raise SimulationError("no pedestrians to simulate")
+        if not np.all(np.isfinite(x)):
+            raise SimulationError("start positions contain non-finite coordinates")
+        tri = mesh.locate(x)
+        if np.any(tri < 0):
+            i = int(np.flatnonzero(tri < 0)[0])
+            raise SimulationError(
+                f"pedestrian {i} starts at ({x[i, 0]:.3f}, {x[i, 1]:.3f}) m, outside the walkable "
+                "area (outside the room or inside an obstacle)"
+            )
+        self._check_overlaps(x)
+        v = np.zeros_like(x) if velocities is None else np.array(velocities, np.float64).reshape(N, 2)
+        if not np.all(np.isfinite(v)):
+            raise SimulationError("initial velocities contain non-finite values")
+        self.n_initial = N
+        self.x = x
+        self.v = v
+        self.ids = np.arange(N, dtype=np.int64)
+        self.tri = tri
+        self.n = N
+        self.rho = np.zeros(N)
+        self.t = 0.0
+        self.steps = 0
+        #: exit time [s] of each pedestrian (by id), NaN while inside
+        self.exit_time = np.full(N, np.nan)
+        #: exit number of each pedestrian (by id), -1 while inside
+        self.exit_id = np.full(N, -1, np.int64)
+        self.n_reflections = 0
+        self.timers = _Timers()
+        # work arrays
+        self._xs = np.empty_like(x)
+        self._vs = np.empty_like(x)
+        self._F = np.empty_like(x)
+        self._rho_w = np.empty(N)
+        self._e = np.empty_like(x)
+        self._exit_of = np.empty(N, np.int64)
+        self._exit_frac = np.empty(N)
+        self._pi = np.empty(max(32 * N, 1024), np.int64)
+        self._pj = np.empty(max(32 * N, 1024), np.int64)
+        self.last_pair_count = 0
+        # neighbour grid over the room (cells at least as large as the largest cut-off)
+        self.rc_f = nm.force_cutoff
+        self.rc_d = nm.density_cutoff * p.R
+        self.rc_w = max(nm.force_cutoff - p.r, 1e-6)
+        cell = max(self.rc_f, self.rc_d)
+        x0, y0, x1, y1 = mesh.bounds
+        self._cx0, self._cy0 = x0 - cell, y0 - cell
+        self._cinv = 1.0 / cell
+        self._cnx = int((x1 - x0 + 2 * cell) * self._cinv) + 1
+        self._cny = int((y1 - y0 + 2 * cell) * self._cinv) + 1
+        self._cell_start = np.zeros(self._cnx * self._cny + 1, np.int64)
+        self._cell_order = np.zeros(N, np.int64)
+        self.walls = WallSet.from_mesh(mesh, self.rc_w)
+        # routes
+        self.reroute = bool(reroute)
+        if desired_velocity is not None:
+            self._const_u = np.asarray(desired_velocity, np.float64).reshape(2)
+            self._use_const = True
+        else:
+            self._const_u = np.zeros(2)
+            self._use_const = False
+        from ..eikonal.direction import _wall_normals
+
+        self._wall_n = _wall_normals(mesh)
+        self._vdir = np.zeros((mesh.n_points, 2))
+        self._tdir = np.zeros((mesh.n_triangles, 2))
+        self.phi = np.zeros(mesh.n_points)
+        self._next_route = 0.0
+        if not self._use_const:
+            from ..eikonal import EikonalSolver
+
+            self._solver = EikonalSolver(mesh)
+            self._route()
+
+    # ------------------------------------------------------------------ helpers
+    def _check_overlaps(self, x: np.ndarray) -> None:
+        from scipy.spatial import cKDTree
+
+        lim = 2 * self.params.r - self.numerics.overlap_tolerance
+        if lim <= 0:
+            return
+        pairs = cKDTree(x).query_pairs(lim, output_type="ndarray")
+        if len(pairs):
+            i, j = (int(a) for a in pairs[0])
+            d = float(np.hypot(*(x[i] - x[j])))
+            raise SimulationError(
+                f"pedestrians {i} and {j} overlap: {d:.3f} m apart, bodies need "
+                f"{2 * self.params.r:.3f} m (tolerance {self.numerics.overlap_tolerance} m)"
+            )
+
+    def _build_cells(self) -> None:
+        from . import _kernels as K
+
+        K.build_cells(self.x, self.n, self._cx0, self._cy0, self._cinv, self._cnx, self._cny,
+                      self._cell_start, self._cell_order)
+
+    def vertex_density(self) -> np.ndarray:
+        """Gaussian kernel density (eq3, eq4) of the crowd at the mesh vertices [ped/m^2]."""
+        return self.density_at(self.mesh.points)
+
+    def density_at(self, points: np.ndarray) -> np.ndarray:
+        """Gaussian kernel density (eq3, eq4) of the crowd at arbitrary points [ped/m^2]."""
+        from . import _kernels as K
+
+        q = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        out = np.zeros(len(q))
+        if self.n == 0:
+            return out
+        self._build_cells()
+        K.density_at(q, len(q), self.x, self.n, self._cell_start, self._cell_order, self._cx0,
+                     self._cy0, self._cinv, self._cnx, self._cny, self.params.R, self.rc_d, out)
+        return out
+
+    def _route(self) -> None:
+        """Re-solve the route potential with cost 1/U_e(rho) at the vertices."""
+        from ..eikonal.direction import DirectionField
+
+        t0 = time.perf_counter()
+        if self.reroute or self.steps == 0:
+            rho_v = self.vertex_density()
+            cost = 1.0 / self.params.desired_speed(rho_v)
+            self.phi = self._solver.solve(cost)
+            field_ = DirectionField(self.mesh, self.phi)
+            self._vdir = field_.vertex_directions
+            self._tdir = field_.triangle_directions
+            self.timers.routes += 1
+        ri = self.numerics.route_interval
+        self._next_route = self.t + ri if ri > 0 else self.t
+        self.timers.routing += time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ stepping
+    def _rk3(self, n: int, dt: float, tri_stage: np.ndarray) -> int:
+        from . import _kernels as K
+
+        p, mesh, w = self.params, self.mesh, self.walls
+        return K.rk3_step(
+            self.x, self.v, n, dt, tri_stage, mesh.points, mesh.triangles,
+            mesh.triangle_neighbors, self._vdir, self._tdir, self._wall_n,
+            self._cell_start, self._cell_order, self._cx0, self._cy0, self._cinv,
+            self._cnx, self._cny, w.piece, w.next_seg, w.x0, w.y0,
+            w.inv_cell, w.nx, w.ny, w.cell_ptr, w.cell_seg, self.rc_f, self.rc_d, self.rc_w,
+            p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, p.U_f, p.beta, self._const_u,
+            self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho, self._e,
+            self._pi, self._pj, PAIR_SKIN,
+        )
+
+    def step(self) -> int:
+        """Advance one time step; returns the number of pedestrians that left."""
+        from . import _kernels as K
+
+        if self.n == 0:
+            return 0
+        nm = self.numerics
+        if not self._use_const and self.steps > 0 and self.t >= self._next_route - 1e-9:
+            self._route()
+        n, dt, mesh = self.n, nm.dt, self.mesh
+        t0 = time.perf_counter()
+        x_old = self.x[:n].copy()
+        while True:
+            tri_stage = self.tri[:n].copy()
+            npairs = self._rk3(n, dt, tri_stage)
+            if npairs >= 0:
+                break
+            self._pi = np.empty(2 * len(self._pi), np.int64)  # pair list full: enlarge
+            self._pj = np.empty(2 * len(self._pj), np.int64)
+        self.last_pair_count = npairs
+        t1 = time.perf_counter()
+        i = K.first_bad(self.x, self.v, n, nm.max_speed**2)
+        if i >= 0:
+            speed = float(np.hypot(*self.v[i]))
+            raise SimulationError(
+                f"blow-up at t = {self.t + dt:.3f} s: pedestrian {int(self.ids[i])} has speed "
+                f"{speed:.3g} m/s (bound {nm.max_speed} m/s); try a smaller time step, "
+                f"e.g. --param dt={dt / 2:g}"
+            )
+        self.n_reflections += K.settle(
+            x_old, self.x, self.v, self.tri, n, mesh.points, mesh.triangles,
+            mesh.triangle_neighbors, mesh.triangle_edges, mesh.edge_kind, mesh.edge_owner,
+            mesh.edge_normals, self._exit_of, self._exit_frac,
+        )
+        gone = self._exit_of[:n] >= 0
+        n_gone = int(gone.sum())
+        if n_gone:
+            ids = self.ids[:n][gone]
+            self.exit_time[ids] = self.t + self._exit_frac[:n][gone] * dt
+            self.exit_id[ids] = self._exit_of[:n][gone]
+            keep = np.flatnonzero(~gone)
+            m = len(keep)
+            for arr in (self.x, self.v):
+                arr[:m] = arr[keep]
+            self.ids[:m] = self.ids[keep]
+            self.tri[:m] = self.tri[keep]
+            self.rho[:m] = self.rho[keep]
+            self.n = m
+        self.steps += 1
+        self.t = self.steps * dt  # no drift from summing dt
+        self.timers.forces += t1 - t0
+        self.timers.settle += time.perf_counter() - t1
+        self.timers.steps += 1
+        return n_gone
+
+    def run(self, t_end: float, callback: Callable[["Simulation"], None] | None = None) -> None:
+        """Step until everyone has left or ``t >= t_end`` [s]; ``callback(self)`` after each step."""
+        while self.n > 0 and self.t < t_end - 1e-9:
+            self.step()
+            if callback is not None:
+                callback(self)
+
+    # ------------------------------------------------------------------ results
+    @property
+    def positions(self) -> np.ndarray:
+        """(n, 2) positions [m] of the pedestrians still inside."""
+        return self.x[: self.n].copy()
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """(n, 2) velocities [m/s] of the pedestrians still inside."""
+        return self.v[: self.n].copy()
+
+    @property
+    def densities(self) -> np.ndarray:
+        """(n,) kernel density [ped/m^2] at each pedestrian at the start of the last step."""
+        return self.rho[: self.n].copy()
+
+    @property
+    def active_ids(self) -> np.ndarray:
+        """(n,) ids of the pedestrians still inside."""
+        return self.ids[: self.n].copy()
+
+    @property
+    def n_evacuated(self) -> int:
+        return self.n_initial - self.n
+
+    def desired_directions(self) -> np.ndarray:
+        """(n, 2) current desired directions of the pedestrians still inside."""
+        from ..eikonal.direction import _interpolate
+
+        out = np.zeros((self.n, 2))
+        if self._use_const:
+            c = self._const_u / max(np.hypot(*self._const_u), 1e-300)
+            out[:] = c
+            return out
+        _interpolate(self.x[: self.n], self.tri[: self.n], self.mesh.triangles, self.mesh.points,
+                     self._vdir, self._tdir, self._wall_n, out)
+        return out

@@ -1,0 +1,116 @@
+"""Run any registered model through the shared output contract, with a progress bar."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from ..errors import SimulationError
+from .models import get_model
+from .output import RunWriter
+
+__all__ = ["run_model", "RunInterrupted"]
+
+
+class RunInterrupted(Exception):
+    """A run stopped by Ctrl-C or SIGTERM; the output written so far is kept."""
+
+    def __init__(self, t: float, out_dir: Path) -> None:
+        super().__init__(f"interrupted at t = {t:.2f} s; results up to then are in {out_dir}")
+        self.t = t
+        self.out_dir = out_dir
+
+
+def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = None,
+              t_end: float = 1000.0, out_dir: str | Path = "run", quiet: bool = False,
+              geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
+              model_options: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Run ``model`` on ``mesh`` until everyone has left or ``t_end`` [s].
+
+    Writes the output directory incrementally (see :mod:`pedmesh.run.output`) and returns
+    the final summary. Raises :class:`RunInterrupted` on Ctrl-C (after writing the summary)
+    and :class:`~pedmesh.errors.SimulationError` on a blow-up (likewise).
+    """
+    from tqdm import tqdm
+
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise SimulationError(f"t_end must be a positive number of seconds, got {t_end!r}")
+    name, factory = get_model(model)
+    t_wall0 = time.perf_counter()
+    run = factory(room, mesh, dict(overrides or {}), **(model_options or {}))
+    out = Path(out_dir)
+    header = {
+        "model": name,
+        "geometry": geometry,
+        "room": room.name if room is not None else None,
+        "mesh": {"vertices": mesh.n_points, "triangles": mesh.n_triangles,
+                 **(mesh_options or {})},
+        "t_end": t_end,
+        "parameters": run.parameters(),
+    }
+    writer = RunWriter(out, header, exit_names=mesh.exit_names,
+                       outflow=hasattr(run, "outflow_rates"))
+    bar = tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
+               dynamic_ncols=True, desc=f"{name}", leave=True,
+               bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
+                          "[{elapsed}<{remaining}] {postfix}")
+    next_sample = 0.0
+    next_frame = 0.0
+    frame = 0
+    last_frame_t = -math.inf
+    status = "finished"
+    error = None
+
+    def record() -> None:
+        nonlocal next_sample, next_frame, frame, last_frame_t
+        t = run.t
+        if t >= next_sample - 1e-9:
+            writer.sample(t, run.evacuated)
+            if hasattr(run, "outflow_rates"):
+                writer.outflow(t, run.outflow_rates())
+            next_sample += run.sample_interval * max(1, math.floor((t - next_sample) / run.sample_interval + 1e-9) + 1)
+        if t >= next_frame - 1e-9:
+            run.write_frame(writer, frame)
+            frame += 1
+            last_frame_t = t
+            next_frame += run.output_interval * max(1, math.floor((t - next_frame) / run.output_interval + 1e-9) + 1)
+
+    try:
+        record()
+        last_bar = 0.0
+        while not run.done and run.t < t_end - 1e-9:
+            run.step()
+            record()
+            if run.t - last_bar >= 0.5 or run.done:
+                bar.update(round(min(run.t, t_end) - last_bar, 3))
+                last_bar = min(run.t, t_end)
+                bar.set_postfix_str(f"inside {run.remaining:.0f}/{run.n_initial}", refresh=False)
+        if not run.done:
+            status = "stopped at t_end"
+        # the final state
+        if run.t > last_frame_t + 1e-9:
+            writer.sample(run.t, run.evacuated)
+            run.write_frame(writer, frame)
+            frame += 1
+        if run.done:
+            bar.total = round(run.t, 3)
+        bar.update(round(min(run.t, t_end) - last_bar, 3))
+    except KeyboardInterrupt:
+        status = "interrupted"
+    except SimulationError as exc:
+        status = "failed"
+        error = str(exc)
+    finally:
+        bar.close()
+        summary = writer.finish(
+            status=status, error=error, t_stop=run.t, frames=frame,
+            wall_time_s=time.perf_counter() - t_wall0, **run.summary(),
+        )
+    if status == "interrupted":
+        raise RunInterrupted(run.t, out)
+    if status == "failed":
+        raise SimulationError(f"{error} (results up to then are in {out})")
+    return summary
