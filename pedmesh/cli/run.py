@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     def fmt(v):
         return "not reached" if v is None else f"{v:.1f} s"
 
-    print(f"{name} on '{room.name}': {s['n_evacuated']:.0f} of {s['n_initial']} out "
+    print(f"{name} on '{room.name}': {s['n_evacuated']:.0f} of {s['n_initial']:.0f} out "
           f"({s['status']}), T50 {fmt(s['t_evac_50'])}, T90 {fmt(s['t_evac_90'])}, "
           f"T100 {fmt(s['t_evac_100'])}; {s['steps']} steps in {s['wall_time_s']:.1f} s")
     print(f"results in {out}")

@@ -108,8 +108,46 @@ def _normalise(v: np.ndarray) -> np.ndarray:
     return out
 
 
+def _jamb_overrides(mesh: TriMesh) -> np.ndarray:
+    """(m, 3, 2) vertex-direction overrides at door jambs, NaN elsewhere.
+
+    At an exit end point next to a wall (a door jamb) the vertex direction is the exit's
+    outward normal. Interpolating it into the triangles of the fan around the jamb that have
+    no exit edge of their own would make the flow converge on the jamb vertex, which no
+    finite volume can pass (mass piles up there), and would steer pedestrians into the jamb.
+    In those triangles the jamb vertex uses the wall direction towards the door instead.
+    """
+    cache = mesh._cache
+    if "jamb" in cache:
+        return cache["jamb"]
+    out = np.full((mesh.n_triangles, 3, 2), np.nan)
+    b = mesh.boundary_edges
+    kind = mesh.edge_kind[b]
+    e = mesh.edges[b]
+    is_exit = kind == BoundaryKind.EXIT
+    solid = ~is_exit
+    n_exit = np.bincount(e[is_exit].ravel(), minlength=mesh.n_points)
+    n_wall = np.bincount(e[solid].ravel(), minlength=mesh.n_points)
+    jambs = np.flatnonzero((n_exit == 1) & (n_wall == 1))
+    if len(jambs):
+        ptr, idx = mesh.vertex_triangles
+        tri_has_exit = np.any(mesh.edge_kind[mesh.triangle_edges] == BoundaryKind.EXIT, axis=1)
+        wall_e = e[solid]
+        for v in jambs:
+            k = np.flatnonzero((wall_e[:, 0] == v) | (wall_e[:, 1] == v))[0]
+            u = wall_e[k, 1] if wall_e[k, 0] == v else wall_e[k, 0]
+            tvec = mesh.points[v] - mesh.points[u]
+            tvec /= np.hypot(*tvec)
+            for t in idx[ptr[v]:ptr[v + 1]]:
+                if not tri_has_exit[t]:
+                    loc = int(np.flatnonzero(mesh.triangles[t] == v)[0])
+                    out[t, loc] = tvec
+    cache["jamb"] = out
+    return out
+
+
 @nb.njit(cache=True)
-def _interpolate(points, tri_idx, triangles, xy, vdir, tdir, wall_n, out):
+def _interpolate(points, tri_idx, triangles, xy, vdir, tdir, wall_n, out, jamb):
     for k in range(tri_idx.shape[0]):
         t = tri_idx[k]
         out[k, 0] = 0.0
@@ -125,8 +163,17 @@ def _interpolate(points, tri_idx, triangles, xy, vdir, tdir, wall_n, out):
         lam1 = ((px - ax) * (cy - ay) - (cx - ax) * (py - ay)) / det
         lam2 = ((bx - ax) * (py - ay) - (px - ax) * (by - ay)) / det
         lam0 = 1.0 - lam1 - lam2
-        ex = lam0 * vdir[a, 0] + lam1 * vdir[b, 0] + lam2 * vdir[c, 0]
-        ey = lam0 * vdir[a, 1] + lam1 * vdir[b, 1] + lam2 * vdir[c, 1]
+        ax_, ay_ = vdir[a, 0], vdir[a, 1]
+        bx_, by_ = vdir[b, 0], vdir[b, 1]
+        cx_, cy_ = vdir[c, 0], vdir[c, 1]
+        if jamb[t, 0, 0] == jamb[t, 0, 0]:
+            ax_, ay_ = jamb[t, 0, 0], jamb[t, 0, 1]
+        if jamb[t, 1, 0] == jamb[t, 1, 0]:
+            bx_, by_ = jamb[t, 1, 0], jamb[t, 1, 1]
+        if jamb[t, 2, 0] == jamb[t, 2, 0]:
+            cx_, cy_ = jamb[t, 2, 0], jamb[t, 2, 1]
+        ex = lam0 * ax_ + lam1 * bx_ + lam2 * cx_
+        ey = lam0 * ay_ + lam1 * by_ + lam2 * cy_
         # wall edge opposite local vertex i: remove the into-wall component, fully on the
         # wall (lambda_i = 0) and fading out towards the opposite vertex
         for i in range(3):
@@ -219,5 +266,5 @@ class DirectionField:
         out = np.empty_like(pts)
         _interpolate(pts, np.ascontiguousarray(tri), self.mesh.triangles, self.mesh.points,
                      self.vertex_directions, self.triangle_directions,
-                     _wall_normals(self.mesh), out)
+                     _wall_normals(self.mesh), out, _jamb_overrides(self.mesh))
         return out

@@ -378,7 +378,7 @@ def follow(points, triangles, nbr, tri, x, n):
 
 # ------------------------------------------------------------------ one SSP-RK3 step
 @nb.njit(cache=True)
-def accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, pi, pj, npairs,
+def accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, beta,
           const_u, use_const, F, rho, e):
@@ -395,7 +395,7 @@ def accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, pi, pj, npai
             F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
         return
     follow(points, triangles, nbr, tri, x, n)
-    _interpolate(x[:n], tri[:n], triangles, points, vdir, tdir, wall_n, e)
+    _interpolate(x[:n], tri[:n], triangles, points, vdir, tdir, wall_n, e, jamb)
     for i in range(n):
         ue = U_f * math.exp(-beta * rho[i])
         F[i, 0] += (ue * e[i, 0] - v[i, 0]) * inv_tau
@@ -484,7 +484,7 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
 
 
 @nb.njit(cache=True)
-def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n,
+def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, beta,
@@ -503,7 +503,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n,
     if npairs < 0:
         return -1
     # stage 1: u1 = u + dt L(u)
-    accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, pi, pj, npairs, piece,
+    accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
           m, R, tau, U_f, beta, const_u, use_const, F, rho, e)
     for i in range(n):
@@ -516,7 +516,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n,
                             rc_list, pi, pj, npairs)
     if npairs < 0:
         return -1
-    accel(xs, vs, n, tri, points, triangles, nbr, vdir, tdir, wall_n, pi, pj, npairs, piece,
+    accel(xs, vs, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
           m, R, tau, U_f, beta, const_u, use_const, F, rho, e)
     for i in range(n):
@@ -530,7 +530,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n,
                             rc_list, pi, pj, npairs)
     if npairs < 0:
         return -1
-    accel(xs, vs, n, tri, points, triangles, nbr, vdir, tdir, wall_n, pi, pj, npairs, piece,
+    accel(xs, vs, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
           m, R, tau, U_f, beta, const_u, use_const, F, rho, e)
     for i in range(n):

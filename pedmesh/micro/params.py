@@ -90,14 +90,22 @@ def _check_positive(obj: Any) -> None:
             raise ParameterError(f"parameter '{f.name}' must be positive, got {v!r}")
 
 
-def parse_param_overrides(items: Iterable[str]) -> dict[str, float]:
-    """``["A=1500", "dt=0.005"]`` -> ``{"A": 1500.0, "dt": 0.005}`` with clear errors."""
-    out: dict[str, float] = {}
+#: parameters whose values are words, not numbers
+TEXT_PARAMS = {"exit"}
+
+
+def parse_param_overrides(items: Iterable[str]) -> dict[str, float | str]:
+    """``["A=1500", "exit=transmissive"]`` -> ``{"A": 1500.0, "exit": "transmissive"}``,
+    with clear errors."""
+    out: dict[str, float | str] = {}
     for item in items or []:
         if "=" not in item:
             raise ParameterError(f"--param expects NAME=VALUE, got '{item}'")
         name, _, value = item.partition("=")
         name = name.strip()
+        if name in TEXT_PARAMS:
+            out[name] = value.strip()
+            continue
         try:
             out[name] = float(value)
         except ValueError:

@@ -162,9 +162,10 @@ class Simulation:
         else:
             self._const_u = np.zeros(2)
             self._use_const = False
-        from ..eikonal.direction import _wall_normals
+        from ..eikonal.direction import _jamb_overrides, _wall_normals
 
         self._wall_n = _wall_normals(mesh)
+        self._jamb = _jamb_overrides(mesh)
         self._vdir = np.zeros((mesh.n_points, 2))
         self._tdir = np.zeros((mesh.n_triangles, 2))
         self.phi = np.zeros(mesh.n_points)
@@ -238,7 +239,7 @@ class Simulation:
         p, mesh, w = self.params, self.mesh, self.walls
         return K.rk3_step(
             self.x, self.v, n, dt, tri_stage, mesh.points, mesh.triangles,
-            mesh.triangle_neighbors, self._vdir, self._tdir, self._wall_n,
+            mesh.triangle_neighbors, self._vdir, self._tdir, self._wall_n, self._jamb,
             self._cell_start, self._cell_order, self._cx0, self._cy0, self._cinv,
             self._cnx, self._cny, w.piece, w.next_seg, w.x0, w.y0,
             w.inv_cell, w.nx, w.ny, w.cell_ptr, w.cell_seg, self.rc_f, self.rc_d, self.rc_w,
@@ -344,5 +345,5 @@ class Simulation:
             out[:] = c
             return out
         _interpolate(self.x[: self.n], self.tri[: self.n], self.mesh.triangles, self.mesh.points,
-                     self._vdir, self._tdir, self._wall_n, out)
+                     self._vdir, self._tdir, self._wall_n, out, self._jamb)
         return out

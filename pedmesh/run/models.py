@@ -122,3 +122,17 @@ def _sfm_factory(room, mesh, overrides, **kw):
 
 
 register_model("sfm", _sfm_factory, aliases=("sf", "sf1", "social-force"))
+
+
+def _macro_factory(model: str, params: set[str]):
+    def factory(room, mesh, overrides, **kw):
+        from ..macro.run import MacroRun
+
+        return MacroRun(room, mesh, overrides, model=model, model_params=params, **kw)
+
+    return factory
+
+
+register_model("pw", _macro_factory("pw", {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}),
+               aliases=("payne-whitham",))
+register_model("rdue", _macro_factory("rdue", {"U_f", "beta"}), aliases=("hughes",))

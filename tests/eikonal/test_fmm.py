@@ -119,31 +119,8 @@ def test_plane_wave_is_exact_on_an_irregular_mesh(angle_deg):
     assert np.abs(phi - exact).max() < 1e-10
 
 
-def _mirrored_mesh():
-    half = Room([(0, 25), (100, 25), (100, 50), (0, 50)], exits=[Exit("exit", [(100, 25), (100, 30)])])
-    m = half.mesh(max_area=2.0)
-    p = m.points
-    n = len(p)
-    on_axis = p[:, 1] == 25.0
-    # mirror (x, y) -> (x, 50 - y); vertices on the axis are shared
-    twin = np.where(on_axis, np.arange(n), n + np.arange(n))
-    pts = np.concatenate([p, p * [1, -1] + [0, 50]])
-    tri = np.concatenate([m.triangles, twin[m.triangles]])
-    keep = ~np.all(p[m.segments][:, :, 1] == 25.0, axis=1)  # the axis is interior now
-    seg = np.concatenate([m.segments[keep], twin[m.segments[keep]]])
-    kind = np.concatenate([m.segment_kind[keep]] * 2)
-    owner = np.concatenate([m.segment_owner[keep]] * 2)
-    used = np.zeros(len(pts), bool)
-    used[tri.ravel()] = True
-    renum = np.cumsum(used) - 1
-    mesh = TriMesh(pts[used], renum[tri], renum[seg], kind, owner, ("exit",))
-    mirror = renum[twin]  # vertex index -> index of its mirror image (upper half)
-    full = np.arange(n)
-    return mesh, mirror, renum[full]
-
-
-def test_mirror_symmetric_room_gives_symmetric_phi():
-    mesh, mirror, upper = _mirrored_mesh()
+def test_mirror_symmetric_room_gives_symmetric_phi(mirrored_mesh):
+    mesh, mirror, upper, _ = mirrored_mesh
     assert mesh.exit_lengths[0] == pytest.approx(10.0)
     phi = solve_eikonal(mesh)
     np.testing.assert_allclose(phi[upper], phi[mirror], rtol=0, atol=1e-12)

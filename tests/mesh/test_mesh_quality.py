@@ -8,7 +8,10 @@ import shapely
 
 from pedmesh import BoundaryKind, MeshError, TriMesh
 
-from conftest import SHIPPED
+from pathlib import Path
+
+SHIPPED = sorted(p for p in (Path(__file__).resolve().parents[2] / "geometries").iterdir()
+                 if p.suffix in (".json", ".geojson", ".dxf"))
 
 
 @pytest.fixture(scope="module", params=[p.name for p in SHIPPED])

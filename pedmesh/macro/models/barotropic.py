@@ -1,0 +1,276 @@
+"""Density + momentum models with a barotropic pressure and relaxation to the desired
+velocity:
+
+.. math::
+    \\rho_t + \\nabla\\cdot(\\rho u) = 0, \\qquad
+    (\\rho u)_t + \\nabla\\cdot(\\rho u \\otimes u + p(\\rho) I)
+        = \\rho \\frac{U_e(\\rho) e - u}{\\tau} + \\text{(model sources)}
+
+* ``pw`` (Payne-Whitham): p = c0^2 rho, sound speed c0 (c0 = 0 is pressureless Euler);
+* ``mac2-local`` (issue 6) and ``eos`` (issue 8) use other pressure laws.
+
+Numerics at the quadrature points: the velocity is desingularised near vacuum
+(Kurganov-Petrova, ``u = sqrt(2) rho m / sqrt(rho^4 + max(rho^4, rho_cut^4))``) and capped
+at ``u_max``; the flux is Rusanov with wave speed ``|u.n| + c(rho)``; walls are mirror
+states (zero mass flux); exits open onto empty space (``vacuum``: Rusanov against rho = 0,
+so mass only leaves) or are ``transmissive`` (zero-gradient, u.n clipped >= 0).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from ...errors import ParameterError
+from .base import MacroModel, register_macro_model
+
+__all__ = ["BarotropicModel", "PressureLaw", "PayneWhitham"]
+
+SQRT2 = math.sqrt(2.0)
+ISOTHERMAL, QUADRATIC, TABLE = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class PressureLaw:
+    """p(rho) [m^2/s^2 ped/m^2 ... per unit mass]: ``isothermal`` c0^2 rho, ``quadratic``
+    gamma rho^2 / 2, or ``table`` (monotone piecewise-cubic on a density grid)."""
+
+    kind: int
+    params: np.ndarray  # isothermal: [c0]; quadratic: [gamma]; table: [rho_0..rho_n, p..., dp...]
+
+    @classmethod
+    def isothermal(cls, c0: float) -> "PressureLaw":
+        return cls(ISOTHERMAL, np.array([float(c0)]))
+
+    @classmethod
+    def quadratic(cls, gamma: float) -> "PressureLaw":
+        return cls(QUADRATIC, np.array([float(gamma)]))
+
+    def pressure(self, rho):
+        r = np.asarray(rho, float)
+        out = np.empty_like(r)
+        c = np.empty_like(r)
+        _p_c_vec(self.kind, self.params, r.ravel(), out.ravel(), c.ravel())
+        return out
+
+    def sound_speed(self, rho):
+        r = np.asarray(rho, float)
+        out = np.empty_like(r)
+        c = np.empty_like(r)
+        _p_c_vec(self.kind, self.params, r.ravel(), out.ravel(), c.ravel())
+        return c
+
+
+@nb.njit(cache=True, inline="always")
+def _p_c(kind, prm, rho):
+    """Pressure (per unit mass, [m^2/s^2 ped/m^2]) and sound speed [m/s] at density rho."""
+    if rho <= 0.0:
+        return 0.0, (prm[0] if kind == ISOTHERMAL else 0.0)
+    if kind == ISOTHERMAL:
+        return prm[0] * prm[0] * rho, prm[0]
+    if kind == QUADRATIC:
+        return 0.5 * prm[0] * rho * rho, math.sqrt(prm[0] * rho)
+    # TABLE: prm = [n, rho_0..rho_{n-1}, p_0..p_{n-1}, dp_0..dp_{n-1}] (Hermite cubic)
+    n = int(prm[0])
+    r0 = prm[1]
+    rn = prm[n]
+    if rho >= rn:  # linear extension with the last slope
+        pn = prm[2 * n]
+        dpn = prm[3 * n]
+        return pn + dpn * (rho - rn), math.sqrt(max(dpn, 0.0))
+    if rho <= r0:
+        dp0 = prm[2 * n + 1]
+        p0 = prm[n + 1]
+        # below the first node: p = p0 (rho/r0)^2 keeps p(0) = 0 and p' >= 0
+        return p0 * (rho / r0) ** 2, math.sqrt(max(2.0 * p0 * rho / (r0 * r0), 0.0))
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if prm[1 + mid] <= rho:
+            lo = mid
+        else:
+            hi = mid
+    x0 = prm[1 + lo]
+    x1 = prm[1 + hi]
+    w = x1 - x0
+    t = (rho - x0) / w
+    y0 = prm[1 + n + lo]
+    y1 = prm[1 + n + hi]
+    d0 = prm[1 + 2 * n + lo] * w
+    d1 = prm[1 + 2 * n + hi] * w
+    t2 = t * t
+    t3 = t2 * t
+    p = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * d0 + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * d1
+    dp = ((6 * t2 - 6 * t) * y0 + (3 * t2 - 4 * t + 1) * d0 + (-6 * t2 + 6 * t) * y1
+          + (3 * t2 - 2 * t) * d1) / w
+    return p, math.sqrt(max(dp, 0.0))
+
+
+@nb.njit(cache=True)
+def _p_c_vec(kind, prm, rho, p, c):
+    for i in range(rho.shape[0]):
+        p[i], c[i] = _p_c(kind, prm, rho[i])
+
+
+@nb.njit(cache=True, inline="always")
+def _prim(r, mx, my, rho_cut, umax):
+    """Desingularised velocity of a state (Kurganov-Petrova), capped at umax."""
+    if r <= 0.0:
+        return 0.0, 0.0, 0.0
+    if r >= rho_cut:  # the formula reduces to m / rho exactly
+        ux = mx / r
+        uy = my / r
+    else:
+        r4 = r * r * r * r
+        c4 = rho_cut * rho_cut * rho_cut * rho_cut
+        d = math.sqrt(r4 + c4)
+        ux = SQRT2 * r * mx / d
+        uy = SQRT2 * r * my / d
+    s2 = ux * ux + uy * uy
+    if s2 > umax * umax:
+        f = umax / math.sqrt(s2)
+        ux *= f
+        uy *= f
+    return r, ux, uy
+
+
+@nb.njit(cache=True)
+def rusanov(qL, qR, nx, ny, kind, prm, rho_cut, umax, F, alpha):
+    """Rusanov flux of the barotropic system at k points (states (k, 3))."""
+    for k in range(qL.shape[0]):
+        rl, ulx, uly = _prim(qL[k, 0], qL[k, 1], qL[k, 2], rho_cut, umax)
+        rr, urx, ury = _prim(qR[k, 0], qR[k, 1], qR[k, 2], rho_cut, umax)
+        pl, cl = _p_c(kind, prm, rl)
+        pr, cr = _p_c(kind, prm, rr)
+        unl = ulx * nx[k] + uly * ny[k]
+        unr = urx * nx[k] + ury * ny[k]
+        a = max(abs(unl) + cl, abs(unr) + cr)
+        alpha[k] = a
+        F[k, 0] = 0.5 * (rl * unl + rr * unr) - 0.5 * a * (rr - rl)
+        F[k, 1] = 0.5 * (rl * ulx * unl + pl * nx[k] + rr * urx * unr + pr * nx[k]) \
+            - 0.5 * a * (rr * urx - rl * ulx)
+        F[k, 2] = 0.5 * (rl * uly * unl + pl * ny[k] + rr * ury * unr + pr * ny[k]) \
+            - 0.5 * a * (rr * ury - rl * uly)
+
+
+@nb.njit(cache=True)
+def mirror(q, nx, ny, out):
+    """Mirror states: same density, normal velocity reversed."""
+    for k in range(q.shape[0]):
+        mn = q[k, 1] * nx[k] + q[k, 2] * ny[k]
+        out[k, 0] = q[k, 0]
+        out[k, 1] = q[k, 1] - 2.0 * mn * nx[k]
+        out[k, 2] = q[k, 2] - 2.0 * mn * ny[k]
+
+
+@nb.njit(cache=True)
+def transmissive(q, nx, ny, kind, prm, rho_cut, umax, F):
+    """Physical flux of the interior state with u.n clipped to >= 0 (no re-entry)."""
+    for k in range(q.shape[0]):
+        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+        un = ux * nx[k] + uy * ny[k]
+        if un < 0.0:
+            ux -= un * nx[k]
+            uy -= un * ny[k]
+            un = 0.0
+        p, c = _p_c(kind, prm, r)
+        F[k, 0] = r * un
+        F[k, 1] = r * ux * un + p * nx[k]
+        F[k, 2] = r * uy * un + p * ny[k]
+
+
+@nb.njit(cache=True)
+def relaxation(q, ex, ey, U_f, beta, tau, rho_cut, umax, S):
+    """rho (U_e(rho) e - u)/tau at k points."""
+    for k in range(q.shape[0]):
+        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+        ue = U_f * math.exp(-beta * r)
+        S[k, 0] = 0.0
+        S[k, 1] = r * (ue * ex[k] - ux) / tau
+        S[k, 2] = r * (ue * ey[k] - uy) / tau
+
+
+@nb.njit(cache=True)
+def velocities(q, rho_cut, umax, out):
+    for k in range(q.shape[0]):
+        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+        out[k, 0] = ux
+        out[k, 1] = uy
+
+
+class BarotropicModel(MacroModel):
+    """Density, momentum, barotropic pressure and relaxation (see module docstring)."""
+
+    n_vars = 3
+    direction_dependent_flux = False
+    exit_conditions = ("vacuum", "transmissive")
+
+    def __init__(self, name: str, law: PressureLaw, *, U_f: float = 1.034, beta: float = 0.05,
+                 tau: float = 0.5, rho_cut: float = 1e-3, u_max: float | None = None) -> None:
+        for k, v in (("U_f", U_f), ("beta", beta), ("tau", tau), ("rho_cut", rho_cut)):
+            if not (np.isfinite(v) and v > 0):
+                raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
+        self.name = name
+        self.law = law
+        #: no pressure (momentum flux rho u (x) u only): the flux limiter then also keeps the
+        #: velocity within the bounds of the neighbourhood (the first-order scheme does)
+        self.pressureless = law.kind == ISOTHERMAL and float(law.params[0]) == 0.0
+        self.U_f, self.beta, self.tau, self.rho_cut = float(U_f), float(beta), float(tau), float(rho_cut)
+        #: velocity cap [m/s] at near-vacuum points (default 2.5 U_f)
+        self.u_max = float(u_max) if u_max is not None else 2.5 * self.U_f
+
+    def flux(self, qL, qR, nx, ny, ex, ey):
+        F = np.empty_like(qL)
+        a = np.empty(len(qL))
+        rusanov(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F, a)
+        return F, a
+
+    def wall_flux(self, q, nx, ny, ex, ey):
+        g = np.empty_like(q)
+        mirror(q, nx, ny, g)
+        F, _ = self.flux(q, g, nx, ny, ex, ey)
+        return F
+
+    def exit_flux(self, q, nx, ny, ex, ey, kind):
+        if kind == "vacuum":
+            F, _ = self.flux(q, np.zeros_like(q), nx, ny, ex, ey)
+            return F
+        if kind == "transmissive":
+            F = np.empty_like(q)
+            transmissive(q, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F)
+            return F
+        raise ParameterError(f"unknown exit condition '{kind}'")
+
+    def source(self, q, ex, ey):
+        S = np.empty_like(q)
+        relaxation(q, ex, ey, self.U_f, self.beta, self.tau, self.rho_cut, self.u_max, S)
+        return S
+
+    def velocity(self, q):
+        out = np.empty((len(q), 2))
+        velocities(q, self.rho_cut, self.u_max, out)
+        return out
+
+    def parameters(self) -> dict:
+        return {"U_f": self.U_f, "beta": self.beta, "tau": self.tau, "rho_cut": self.rho_cut,
+                "u_max": self.u_max}
+
+
+class PayneWhitham(BarotropicModel):
+    """Payne-Whitham: momentum flux rho u (x) u + c0^2 rho I, relaxation to U_e(rho) e."""
+
+    def __init__(self, c0: float = 1.0, **kw) -> None:
+        if not (np.isfinite(c0) and c0 >= 0):
+            raise ParameterError(f"parameter 'c0' must be >= 0 [m/s], got {c0!r}")
+        super().__init__("pw", PressureLaw.isothermal(c0), **kw)
+        self.c0 = float(c0)
+
+    def parameters(self) -> dict:
+        return {"c0": self.c0, **super().parameters()}
+
+
+register_macro_model("pw", PayneWhitham)

@@ -1,0 +1,85 @@
+"""The interface every continuum model implements, and the model registry."""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ...errors import ParameterError
+
+__all__ = ["MacroModel", "MACRO_MODELS", "register_macro_model", "macro_model"]
+
+
+class MacroModel:
+    """A continuum model for the finite-volume core.
+
+    The core reconstructs point values and calls these vectorised methods; it knows nothing
+    model-specific. Arrays are over k points: states ``q`` (k, nv), unit normals ``nx``,
+    ``ny`` (k,) and the desired direction ``ex``, ``ey`` (k,) at the same points.
+    """
+
+    name: str = "model"
+    #: number of conserved variables: 1 (density) or 3 (density, x- and y-momentum)
+    n_vars: int = 3
+    #: exit conditions this model offers; the first is the default
+    exit_conditions: tuple[str, ...] = ("vacuum", "transmissive")
+    #: the model needs the desired direction e (eikonal) at the quadrature points
+    needs_route: bool = True
+    #: the numerical flux depends on the direction e (so it differs between Gauss points
+    #: even for equal states)
+    direction_dependent_flux: bool = True
+
+    def flux(self, qL, qR, nx, ny, ex, ey):
+        """Numerical flux density (k, nv) across the normal (from L to R) and the wave speed
+        (k,) used for it."""
+        raise NotImplementedError
+
+    def wall_flux(self, q, nx, ny, ex, ey):
+        """Flux density (k, nv) through a wall with outward normal n (zero mass flux)."""
+        raise NotImplementedError
+
+    def exit_flux(self, q, nx, ny, ex, ey, kind: str):
+        """Flux density (k, nv) out through an exit with outward normal n."""
+        raise NotImplementedError
+
+    def source(self, q, ex, ey):
+        """Source (k, nv) at interior quadrature points."""
+        return np.zeros_like(q)
+
+    def velocity(self, q):
+        """(k, 2) velocity [m/s] of the states (for output)."""
+        raise NotImplementedError
+
+    def initial_state(self, rho: np.ndarray) -> np.ndarray:
+        """Cell averages (m, nv) of a crowd at rest with density ``rho`` (m,)."""
+        q = np.zeros((len(rho), self.n_vars))
+        q[:, 0] = rho
+        return q
+
+    def parameters(self) -> dict:
+        return {}
+
+    def check_exit(self, kind: str) -> str:
+        if kind is None:
+            return self.exit_conditions[0]
+        if kind not in self.exit_conditions:
+            raise ParameterError(
+                f"model '{self.name}' has no exit condition '{kind}' "
+                f"(choose from: {', '.join(self.exit_conditions)})"
+            )
+        return kind
+
+
+MACRO_MODELS: dict[str, Callable[..., MacroModel]] = {}
+
+
+def register_macro_model(name: str, factory: Callable[..., MacroModel]) -> None:
+    """Register a continuum model factory ``factory(**params) -> MacroModel``."""
+    MACRO_MODELS[name] = factory
+
+
+def macro_model(name: str, **params) -> MacroModel:
+    if name not in MACRO_MODELS:
+        raise ParameterError(f"unknown continuum model '{name}' (models: {', '.join(sorted(MACRO_MODELS))})")
+    return MACRO_MODELS[name](**params)

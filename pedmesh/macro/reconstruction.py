@@ -1,0 +1,330 @@
+"""Third-order CWENO reconstruction on triangles (Dumbser-Boscheri-Semplice-Russo 2017).
+
+For cell i with centroid x_i, area |T_i| and h_i = sqrt(|T_i|), in scaled coordinates
+xi = (x - x_i)/h_i, a polynomial is ``p = qbar_i + sum_k a_k phi_k`` with the mean-free basis
+
+    phi_1 = xi, phi_2 = eta, phi_3 = xi^2 - <xi^2>_i, phi_4 = xi eta - <xi eta>_i,
+    phi_5 = eta^2 - <eta^2>_i,
+
+so every reconstruction keeps the cell average exactly. Ingredients, all precomputed once
+per mesh and stored as arrays:
+
+* ``P_opt``: the least-squares quadratic on a central stencil (face neighbours and their
+  face neighbours, plus all vertex neighbours if fewer than 8), interior cells only (so
+  cells at walls and exits get one-sided stencils). Rows are exact cell averages of the
+  basis (3-point rule). Too few cells or a condition number above 1e8 -> least-squares
+  linear; fewer than two cells -> first order.
+* up to six linear polynomials ``P_k`` on pairs of neighbours: the three face-neighbour
+  pairs (central sectors) and, for every face neighbour, its two further face neighbours
+  (forward sectors, which stay on one side of a front that cuts two face neighbours off);
+  at the boundary also pairs of a face neighbour and one of its neighbours.
+* the CWENO combination ``P_0 = (P_opt - sum d_k P_k)/d_0`` with d_0 = 0.8, nonlinear
+  weights ``alpha_k = d_k/(beta_k + eps)^2`` from the Hu-Shu smoothness indicators and
+  ``eps = (eps_hat * q_ref * h_i / 1 m)^2`` per variable (the h^2 scaling keeps the order
+  at smooth extrema).
+
+The reconstruction is component-wise in the conserved variables (the pressureless Jacobian
+is not diagonalisable). Point values are produced at the 6 edge Gauss points (2 per edge)
+and the 3 interior points (barycentric (2/3, 1/6, 1/6) and permutations, exact for
+quadratics) of every cell.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from ..mesh.trimesh import TriMesh
+
+__all__ = ["ReconstructionData", "build_reconstruction", "reconstruct", "GAUSS_S", "D0"]
+
+#: Gauss points on an edge, as fractions from edges[e, 0] to edges[e, 1]
+GAUSS_S = (0.5 - np.sqrt(3.0) / 6.0, 0.5 + np.sqrt(3.0) / 6.0)
+#: CWENO linear weight of the central polynomial
+D0 = 0.8
+#: barycentric coordinates of the 3 interior quadrature points (weights 1/3)
+INTERIOR_BARY = np.array([[2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
+MAX_STENCIL = 24
+MAX_PAIRS = 6
+COND_LIMIT = 1e8
+
+
+@dataclass(frozen=True)
+class ReconstructionData:
+    """Precomputed per-mesh data of the CWENO3 reconstruction (see module docstring)."""
+
+    h: np.ndarray  # (m,) sqrt(area) [m]
+    stencil: np.ndarray  # (m, S) cells of the central stencil, -1 padded
+    R: np.ndarray  # (m, 5, S) least-squares operator of P_opt
+    opt_degree: np.ndarray  # (m,) 2, 1 or 0
+    moments: np.ndarray  # (m, 3) <xi^2>, <xi eta>, <eta^2> over the cell itself
+    pairs: np.ndarray  # (m, 6, 2) cells of the linear sector polynomials, -1 unused
+    pair_inv: np.ndarray  # (m, 6, 2, 2) inverse of the 2x2 centroid-offset matrices
+    n_pairs: np.ndarray  # (m,)
+    basis_pts: np.ndarray  # (m, 9, 5) basis values at the 6 edge + 3 interior points
+    edge_pt: np.ndarray  # (k, 2, 2) physical Gauss points of every edge
+    edge_cell_pt: np.ndarray  # (k, 2, 2) local point index (0..5) in the L and R cell
+
+
+def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
+    """<xi>, <eta>, <xi^2>, <xi eta>, <eta^2> over triangles (m, 3, 2), each in the frame of
+    its centroid ``xc`` (m, 2) and scale ``h`` (m, 1) (3-point rule: exact for quadratics)."""
+    q = np.einsum("pb,...bd->...pd", INTERIOR_BARY, pts_tri)  # (..., 3, 2)
+    xi = (q[..., 0] - xc[..., None, 0]) / h
+    eta = (q[..., 1] - xc[..., None, 1]) / h
+    return np.stack([xi.mean(-1), eta.mean(-1), (xi * xi).mean(-1), (xi * eta).mean(-1),
+                     (eta * eta).mean(-1)], axis=-1)
+
+
+@nb.njit(cache=True)
+def _stencils(nbr, tri, vptr, vidx, out):
+    """Central stencils: face neighbours, their face neighbours, and all vertex neighbours
+    when that gives fewer than 8 cells (a rule that does not depend on cell numbering, so
+    mirror-symmetric meshes get mirror-symmetric stencils)."""
+    m = nbr.shape[0]
+    S = out.shape[1]
+    for i in range(m):
+        n = 0
+        for a in range(3):
+            j = nbr[i, a]
+            if j >= 0:
+                out[i, n] = j
+                n += 1
+        n1 = n
+        for a in range(n1):
+            j = out[i, a]
+            for b in range(3):
+                k = nbr[j, b]
+                if k < 0 or k == i:
+                    continue
+                dup = False
+                for c in range(n):
+                    if out[i, c] == k:
+                        dup = True
+                        break
+                if not dup and n < S:
+                    out[i, n] = k
+                    n += 1
+        if n < 8:
+            for a in range(3):
+                v = tri[i, a]
+                for q in range(vptr[v], vptr[v + 1]):
+                    k = vidx[q]
+                    if k == i:
+                        continue
+                    dup = False
+                    for c in range(n):
+                        if out[i, c] == k:
+                            dup = True
+                            break
+                    if not dup and n < S:
+                        out[i, n] = k
+                        n += 1
+
+
+def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
+    """Stencils, least-squares operators and point basis values of a mesh (once per mesh)."""
+    cache = mesh._cache
+    if "cweno3" in cache:
+        return cache["cweno3"]
+    m = mesh.n_triangles
+    nbr = mesh.triangle_neighbors
+    P = mesh.points[mesh.triangles]  # (m, 3, 2)
+    cen = mesh.centroids
+    h = np.sqrt(mesh.areas)
+    ptr, idx = mesh.vertex_triangles
+    own = _scaled_moments(P, cen, h[:, None])  # (m, 5): moments of each cell in its frame
+    moments = np.ascontiguousarray(own[:, 2:5])
+    stencil = np.full((m, MAX_STENCIL), -1, np.int64)
+    _stencils(nbr, mesh.triangles, ptr, idx, stencil)
+    size = (stencil >= 0).sum(axis=1)
+    # least-squares rows: cell averages of the basis of cell i over stencil cells
+    sj = np.where(stencil >= 0, stencil, 0)
+    Pj = P[sj]  # (m, S, 3, 2)
+    q = np.einsum("pb,msbd->mspd", INTERIOR_BARY, Pj)
+    xi = (q[..., 0] - cen[:, None, None, 0]) / h[:, None, None]
+    eta = (q[..., 1] - cen[:, None, None, 1]) / h[:, None, None]
+    A = np.stack([xi.mean(-1), eta.mean(-1), (xi * xi).mean(-1) - own[:, None, 2],
+                  (xi * eta).mean(-1) - own[:, None, 3], (eta * eta).mean(-1) - own[:, None, 4]],
+                 axis=-1)  # (m, S, 5)
+    A[stencil < 0] = 0.0
+    R = np.zeros((m, 5, MAX_STENCIL))
+    opt_degree = np.zeros(m, np.int64)
+    for L in np.unique(size):
+        rows = np.flatnonzero(size == L)
+        if L < 2:
+            continue
+        AL = A[rows, :L]
+        quad = np.zeros(len(rows), bool)
+        if L >= 7:
+            sv = np.linalg.svd(AL, compute_uv=False)
+            quad = (sv[:, -1] > 0) & (sv[:, 0] < COND_LIMIT * sv[:, -1])
+            if quad.any():
+                R[rows[quad], :, :L] = np.linalg.pinv(AL[quad])
+                opt_degree[rows[quad]] = 2
+        lin = ~quad
+        if lin.any():
+            A1 = AL[lin][:, :, :2]
+            sv = np.linalg.svd(A1, compute_uv=False)
+            ok = (sv[:, -1] > 0) & (sv[:, 0] < COND_LIMIT * sv[:, -1])
+            r = rows[lin][ok]
+            if len(r):
+                R[r, :2, :L] = np.linalg.pinv(A1[ok])
+                opt_degree[r] = 1
+    # linear sector polynomials on pairs of neighbours
+    pairs = np.full((m, MAX_PAIRS, 2), -1, np.int64)
+    pair_inv = np.zeros((m, MAX_PAIRS, 2, 2))
+    n_pairs = np.zeros(m, np.int64)
+    cand_a, cand_b, cand_i = [], [], []
+    full = np.all(nbr >= 0, axis=1)
+    fi = np.flatnonzero(full)
+    for u, w in ((0, 1), (1, 2), (2, 0)):  # central sectors
+        cand_i.append(fi)
+        cand_a.append(nbr[fi, u])
+        cand_b.append(nbr[fi, w])
+    for k in range(3):  # forward sectors: the far neighbours of each face neighbour
+        a_ = nbr[fi, k]
+        na = nbr[a_]  # (f, 3)
+        other = na != fi[:, None]
+        ok = (other.sum(axis=1) == 2) & np.all(na >= 0, axis=1)
+        rows = np.flatnonzero(ok)
+        two = na[rows][other[rows]].reshape(-1, 2)
+        cand_i.append(fi[rows])
+        cand_a.append(two[:, 0])
+        cand_b.append(two[:, 1])
+    ci = np.concatenate(cand_i)
+    ca = np.concatenate(cand_a)
+    cb = np.concatenate(cand_b)
+    M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]], axis=1)
+    det = np.linalg.det(M)
+    good = np.abs(det) > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
+    inv = np.zeros_like(M)
+    inv[good] = np.linalg.inv(M[good])
+    for i, a_, b_, g in zip(ci[good], ca[good], cb[good], inv[good]):
+        k = n_pairs[i]
+        if k < MAX_PAIRS:
+            pairs[i, k] = (a_, b_)
+            pair_inv[i, k] = g
+            n_pairs[i] += 1
+    for i in np.flatnonzero(~full):  # boundary cells: also pairs with second-ring cells
+        n1 = [int(j) for j in nbr[i] if j >= 0]
+        cand = [(a, b) for ka, a in enumerate(n1) for b in n1[ka + 1:]]
+        for a in n1:
+            for b in nbr[a]:
+                if b >= 0 and b != i and b not in n1:
+                    cand.append((a, int(b)))
+        rows = []
+        for a, b in cand:
+            Mi = np.array([(cen[a] - cen[i]) / h[i], (cen[b] - cen[i]) / h[i]])
+            d = np.linalg.det(Mi)
+            if abs(d) > 1e-3 * np.abs(Mi).max() ** 2:
+                rows.append((a in n1 and b in n1, abs(d), a, b, np.linalg.inv(Mi)))
+        rows.sort(key=lambda r: (not r[0], -r[1]))
+        for k, (_, _, a, b, g) in enumerate(rows[:MAX_PAIRS]):
+            pairs[i, k] = (a, b)
+            pair_inv[i, k] = g
+        n_pairs[i] = min(len(rows), MAX_PAIRS)
+    # Gauss points on the edges and basis values at the 9 points of every cell
+    e = mesh.edges
+    p0 = mesh.points[e[:, 0]]
+    p1 = mesh.points[e[:, 1]]
+    edge_pt = np.stack([p0 + s * (p1 - p0) for s in GAUSS_S], axis=1)  # (k, 2, 2)
+    t2e = mesh.triangle_edges
+    cell_pts = np.zeros((m, 9, 2))
+    cell_pts[:, :6] = edge_pt[t2e].reshape(m, 6, 2)
+    cell_pts[:, 6:] = np.einsum("pb,mbd->mpd", INTERIOR_BARY, P)
+    xi = (cell_pts[..., 0] - cen[:, None, 0]) / h[:, None]
+    eta = (cell_pts[..., 1] - cen[:, None, 1]) / h[:, None]
+    basis = np.stack([xi, eta, xi * xi - own[:, None, 2], xi * eta - own[:, None, 3],
+                      eta * eta - own[:, None, 4]], axis=-1)
+    # local point index of each edge Gauss point in its two cells
+    e2t = mesh.edge_triangles
+    edge_cell_pt = np.full((len(e), 2, 2), -1, np.int64)
+    for side in range(2):
+        t = e2t[:, side]
+        ok = t >= 0
+        loc = np.argmax(t2e[t[ok]] == np.flatnonzero(ok)[:, None], axis=1)
+        edge_cell_pt[ok, side, 0] = 2 * loc
+        edge_cell_pt[ok, side, 1] = 2 * loc + 1
+    data = ReconstructionData(
+        h=h, stencil=stencil, R=np.ascontiguousarray(R), opt_degree=opt_degree,
+        moments=moments, pairs=pairs, pair_inv=pair_inv, n_pairs=n_pairs,
+        basis_pts=np.ascontiguousarray(basis), edge_pt=edge_pt, edge_cell_pt=edge_cell_pt,
+    )
+    cache["cweno3"] = data
+    return data
+
+
+@nb.njit(cache=True, inline="always")
+def _beta2(a1, a2, a3, a4, a5, mxx, mxy, myy):
+    return (a1 * a1 + a2 * a2 + (4 * a3 * a3 + a4 * a4) * mxx + (a4 * a4 + 4 * a5 * a5) * myy
+            + 4 * a4 * (a3 + a5) * mxy + 4 * a3 * a3 + a4 * a4 + 4 * a5 * a5)
+
+
+@nb.njit(cache=True)
+def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
+                eps_hat, qref, basis_pts, out):
+    """Point values (m, 9, nv) of the reconstruction of cell averages ``qbar`` (m, nv).
+
+    ``order`` 3: CWENO3; 2: CWENO with the linear least-squares polynomial of the central
+    stencil (second-order option); 1: first order (constant).
+    """
+    m, nv = qbar.shape
+    a = np.zeros(5)
+    popt = np.zeros(5)
+    lin = np.zeros((MAX_PAIRS, 2))
+    wk = np.zeros(MAX_PAIRS)
+    for i in range(m):
+        deg = opt_degree[i] if order >= 2 else 0
+        npair = n_pairs[i]
+        for v in range(nv):
+            q0 = qbar[i, v]
+            if deg == 0 or npair == 0:
+                # first order (or no sector polynomials to detect oscillations)
+                for p in range(9):
+                    out[i, p, v] = q0
+                continue
+            for k in range(5):
+                popt[k] = 0.0
+            for s in range(stencil.shape[1]):
+                j = stencil[i, s]
+                if j < 0:
+                    break
+                d = qbar[j, v] - q0
+                for k in range(5):
+                    popt[k] += R[i, k, s] * d
+            if order == 2:
+                popt[2] = 0.0
+                popt[3] = 0.0
+                popt[4] = 0.0
+            for kp in range(npair):
+                da = qbar[pairs[i, kp, 0], v] - q0
+                db = qbar[pairs[i, kp, 1], v] - q0
+                lin[kp, 0] = pair_inv[i, kp, 0, 0] * da + pair_inv[i, kp, 0, 1] * db
+                lin[kp, 1] = pair_inv[i, kp, 1, 0] * da + pair_inv[i, kp, 1, 1] * db
+            eps = (eps_hat * qref[v] * h[i]) ** 2 + 1e-300
+            dk = (1.0 - D0) / npair
+            b0 = _beta2(popt[0], popt[1], popt[2], popt[3], popt[4], moments[i, 0],
+                        moments[i, 1], moments[i, 2])
+            al0 = D0 / (b0 + eps) ** 2
+            tot = al0
+            for kp in range(npair):
+                bk = lin[kp, 0] ** 2 + lin[kp, 1] ** 2
+                wk[kp] = dk / (bk + eps) ** 2
+                tot += wk[kp]
+            # P0 = (Popt - sum dk Pk)/d0; combined p = w0 P0 + sum wk Pk
+            w0 = al0 / tot
+            for k in range(5):
+                a[k] = w0 * popt[k] / D0
+            for kp in range(npair):
+                c = wk[kp] / tot - w0 * dk / D0
+                a[0] += c * lin[kp, 0]
+                a[1] += c * lin[kp, 1]
+            for p in range(9):
+                val = q0
+                for k in range(5):
+                    val += a[k] * basis_pts[i, p, k]
+                out[i, p, v] = val
+    return out

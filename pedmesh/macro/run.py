@@ -1,0 +1,170 @@
+"""Continuum models behind the shared run contract (``pedmesh run --model pw|rdue|...``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+import shapely
+
+from ..errors import ParameterError, SimulationError
+from .models import macro_model
+from .solver import FVController, FVOptions, FVSolver, FVState
+
+__all__ = ["MacroRunOptions", "MacroRun", "initial_density"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class MacroRunOptions:
+    """Output and stopping settings of a continuum run."""
+
+    output_interval: float = 1.0  #: interval [s] between VTK frames
+    sample_interval: float = 0.1  #: interval [s] between rows of evacuation.csv / outflow.csv
+    #: the room counts as empty when fewer than this many pedestrians [ped] remain (the
+    #: continuum never reaches exactly zero); t_evac_100 is that moment
+    empty_below: float = 0.5
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ParameterError(f"parameter '{f.name}' must be positive, got {v!r}")
+
+
+def initial_density(room, mesh) -> np.ndarray:
+    """Cell averages [ped/m^2] of the room's start areas: each area's density (1/spacing^2,
+    density, or count/area) times the covered fraction of every triangle."""
+    rho = np.zeros(mesh.n_triangles)
+    tris = shapely.polygons(mesh.points[mesh.triangles])
+    for s in room.start_areas:
+        shape = s.shape.intersection(room.walkable)
+        if s.spacing is not None:
+            d = 1.0 / s.spacing**2
+        elif s.density is not None:
+            d = s.density
+        else:
+            d = s.count / shape.area
+        cand = shapely.intersects(tris, shape)
+        frac = np.zeros(mesh.n_triangles)
+        frac[cand] = shapely.area(shapely.intersection(tris[cand], shape)) / mesh.areas[cand]
+        rho += d * np.clip(frac, 0.0, 1.0)
+    return rho
+
+
+def _split(overrides: dict[str, Any], targets: dict[str, set[str]]) -> dict[str, dict]:
+    known = set().union(*targets.values())
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ParameterError(f"unknown parameter '{unknown[0]}' (known: {', '.join(sorted(known))})")
+    return {k: {n: v for n, v in overrides.items() if n in names} for k, names in targets.items()}
+
+
+class MacroRun:
+    """A finite-volume continuum model run through ``pedmesh run``."""
+
+    def __init__(self, room, mesh, overrides: dict[str, Any], *, model: str,
+                 model_params: set[str], rho0: np.ndarray | None = None) -> None:
+        parts = _split(overrides, {
+            "model": model_params,
+            "fv": {f.name for f in fields(FVOptions)},
+            "run": {f.name for f in fields(MacroRunOptions)},
+        })
+        for k in ("order",):
+            if k in parts["fv"]:
+                parts["fv"][k] = int(parts["fv"][k])
+        if "limiter" in parts["fv"]:
+            parts["fv"]["limiter"] = bool(parts["fv"]["limiter"])
+        self.model = macro_model(model, **parts["model"])
+        self.fv_options = FVOptions(**parts["fv"])
+        self.options = MacroRunOptions(**parts["run"])
+        self.name = model
+        self.mesh = mesh
+        self.solver = FVSolver(mesh, self.model, self.fv_options)
+        if rho0 is None:
+            if room is None or not room.start_areas:
+                raise SimulationError("no initial crowd: the room has no start areas")
+            rho0 = initial_density(room, mesh)
+        self.state = FVState(self.model.initial_state(rho0))
+        self.controller = FVController(self.solver, self.state)
+        self._n0 = self.solver.mass(self.state.Q)
+        if self._n0 <= 0:
+            raise SimulationError("the initial crowd is empty")
+        self.sample_interval = self.options.sample_interval
+        self.output_interval = self.options.output_interval
+        self.max_mass_error = 0.0
+        self._curve_t = [0.0]
+        self._curve_n = [0.0]
+
+    # ------------------------------------------------------------------ contract
+    @property
+    def t(self) -> float:
+        return self.state.t
+
+    @property
+    def n_initial(self) -> float:
+        return self._n0
+
+    @property
+    def evacuated(self) -> float:
+        return float(self.state.outflow.sum())
+
+    @property
+    def remaining(self) -> float:
+        return self.solver.mass(self.state.Q)
+
+    @property
+    def done(self) -> bool:
+        return self.remaining < self.options.empty_below
+
+    def step(self) -> None:
+        self.controller.advance()
+        self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
+        self._curve_t.append(self.state.t)
+        self._curve_n.append(self.evacuated)
+
+    def outflow_rates(self) -> np.ndarray:
+        """Flow [ped/s] through each exit in the last step."""
+        return self.state.last_exit_flux
+
+    def parameters(self) -> dict[str, Any]:
+        return {**self.model.parameters(), **dataclasses.asdict(self.fv_options),
+                "exit": self.solver.exit_kind, **dataclasses.asdict(self.options)}
+
+    def cell_fields(self) -> dict[str, np.ndarray]:
+        Q = self.state.Q
+        rho = Q[:, 0]
+        if self.model.n_vars == 1:  # RDUE: u = U_e(rho) e
+            vel = (self.model.U_f * np.exp(-self.model.beta * np.maximum(rho, 0)))[:, None] * self.solver.e_cell
+        else:
+            vel = self.model.velocity(Q)
+        return {"rho": rho, "velocity": vel}
+
+    def write_frame(self, writer, frame: int) -> None:
+        f = self.cell_fields()
+        writer.density_frame(self.state.t, self.mesh, point_data={"phi": self.solver.phi},
+                             cell_data={"rho": f["rho"], "velocity": f["velocity"]})
+
+    def summary(self) -> dict[str, Any]:
+        from ..run.output import evacuation_times_from_curve
+
+        n0 = self._n0
+        t = np.asarray(self._curve_t)
+        e = np.asarray(self._curve_n)
+        t50, t90 = evacuation_times_from_curve(t, e, n0, (0.5, 0.9))
+        done = np.flatnonzero(n0 - e < self.options.empty_below)
+        t100 = float(t[done[0]]) if len(done) else None
+        return {
+            "n_initial": n0,
+            "n_evacuated": self.evacuated,
+            "t_evac_50": t50,
+            "t_evac_90": t90,
+            "t_evac_100": t100,
+            "steps": self.state.steps,
+            "dt": float(np.mean(np.diff(t))) if len(t) > 1 else None,
+            "exits": {n: float(v) for n, v in zip(self.mesh.exit_names, self.state.outflow)},
+            "mass_error_max": self.max_mass_error,
+            "exit_condition": self.solver.exit_kind,
+        }

@@ -1,0 +1,140 @@
+"""The pedestrian continuum models on the FV core: RDUE and Payne-Whitham."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pedmesh import Exit, ParameterError, Room, StartArea
+from pedmesh.eikonal import EikonalSolver
+from pedmesh.macro.models import macro_model
+from pedmesh.macro.run import MacroRun, initial_density
+from pedmesh.macro.solver import FVController, FVOptions, FVSolver, FVState
+
+PW_PARAMS = {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}
+RDUE_PARAMS = {"U_f", "beta"}
+
+
+def test_rdue_constant_density_phi_is_distance_over_speed(load_shipped):
+    mesh = load_shipped("example3.json").mesh(max_area=2.0)
+    model = macro_model("rdue")
+    s = FVSolver(mesh, model)
+    rho0 = 2.0
+    s.update_route(np.full((mesh.n_triangles, 1), rho0))
+    distance = EikonalSolver(mesh).solve(1.0)
+    ue = model.U_f * math.exp(-model.beta * rho0)
+    np.testing.assert_allclose(s.phi * ue, distance, rtol=1e-12)
+
+
+def test_rdue_saturated_exit_passes_capacity():
+    """rho above rho* = 1/beta at the exit: the demand flux passes w U_f / (e beta)."""
+    w = 2.0
+    room = Room([(0, 0), (20, 0), (20, w), (0, w)], exits=[Exit("end", [(20, 0), (20, w)])])
+    mesh = room.mesh(max_area=0.1)
+    model = macro_model("rdue")
+    s = FVSolver(mesh, model)
+    st = FVState(np.full((mesh.n_triangles, 1), 30.0))
+    c = FVController(s, st)
+    out0 = None
+    while st.t < 30.0:
+        c.advance(30.0)
+        if out0 is None and st.t >= 5.0:
+            out0 = (st.t, st.outflow.sum())
+    rate = (st.outflow.sum() - out0[1]) / (st.t - out0[0])
+    capacity = w * model.U_f / (math.e * model.beta)
+    assert rate == pytest.approx(capacity, rel=0.05)
+
+
+@pytest.mark.parametrize(("model", "params"), [("rdue", RDUE_PARAMS), ("pw", PW_PARAMS)])
+def test_mass_is_conserved_every_step(load_shipped, model, params):
+    room = load_shipped("corridor_bottleneck.json")
+    run = MacroRun(room, room.mesh(), {}, model=model, model_params=params)
+    n0 = run.n_initial
+    assert n0 == pytest.approx(150.0, rel=1e-9)
+    worst = 0.0
+    for _ in range(150):
+        run.step()
+        inside = run.solver.mass(run.state.Q)
+        worst = max(worst, abs(inside + run.evacuated - n0) / n0)
+        assert run.state.Q[:, 0].min() >= 0.0
+    assert worst <= 1e-10
+    assert run.evacuated > 0
+
+
+@pytest.mark.parametrize("model", ["rdue", "pw"])
+def test_mirror_symmetric_room_stays_symmetric(mirrored_mesh, model):
+    mesh, _, _, tmir = mirrored_mesh
+    m = macro_model(model)
+    s = FVSolver(mesh, m, FVOptions())
+    rho0 = np.where(mesh.centroids[:, 0] < 48, 1.0, 0.0)
+    st = FVState(m.initial_state(rho0))
+    c = FVController(s, st)
+    for _ in range(60):
+        c.advance()
+    Q = st.Q
+    np.testing.assert_allclose(Q[:, 0], Q[tmir, 0], rtol=0, atol=1e-10)
+    if m.n_vars == 3:
+        np.testing.assert_allclose(Q[:, 1], Q[tmir, 1], rtol=0, atol=1e-10)
+        np.testing.assert_allclose(Q[:, 2], -Q[tmir, 2], rtol=0, atol=1e-10)
+    assert st.t > 3.0 and Q[:, 0].max() > 0.5
+
+
+def test_initial_density_of_the_paper_block(load_shipped):
+    room = load_shipped("example2.json")
+    mesh = room.mesh()
+    rho = initial_density(room, mesh)
+    assert np.dot(mesh.areas, rho) == pytest.approx(2400.0, rel=1e-9)
+    assert rho.max() == pytest.approx(1.0) and rho.min() == 0.0
+
+
+def test_unknown_and_bad_parameters(load_shipped):
+    room = load_shipped("corridor_bottleneck.json")
+    mesh = room.mesh()
+    with pytest.raises(ParameterError, match="unknown parameter 'c1'"):
+        MacroRun(room, mesh, {"c1": 1.0}, model="pw", model_params=PW_PARAMS)
+    with pytest.raises(ParameterError, match="no exit condition 'demand'"):
+        MacroRun(room, mesh, {"exit": "demand"}, model="pw", model_params=PW_PARAMS)
+    with pytest.raises(ParameterError, match="parameter 'cfl'"):
+        MacroRun(room, mesh, {"cfl": 2.0}, model="rdue", model_params=RDUE_PARAMS)
+    with pytest.raises(ParameterError, match="parameter 'c0'"):
+        MacroRun(room, mesh, {"c0": -1.0}, model="pw", model_params=PW_PARAMS)
+
+
+def test_exit_conditions_differ_for_a_pressured_crowd():
+    """Empty space beyond the door lets a pressured crowd out faster than a transmissive
+    (zero-gradient) exit."""
+    room = Room([(0, 0), (10, 0), (10, 4), (0, 4)], exits=[Exit("door", [(10, 1.5), (10, 2.5)])],
+                start_areas=[StartArea("crowd", [(5, 0), (10, 0), (10, 4), (5, 4)], density=3.0)])
+    mesh = room.mesh(max_area=0.1)
+    out = {}
+    for kind in ("vacuum", "transmissive"):
+        run = MacroRun(room, mesh, {"exit": kind, "c0": 1.0}, model="pw", model_params=PW_PARAMS)
+        while run.t < 5.0:
+            run.step()
+        out[kind] = run.evacuated
+    assert out["vacuum"] > 1.2 * out["transmissive"]
+
+
+@pytest.mark.parametrize("model", ["rdue", "pw"])
+def test_run_contract(geometries_dir, tmp_path, model):
+    import pyvista as pv
+
+    from pedmesh.cli import main
+
+    out = tmp_path / model
+    assert main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--model", model,
+                 "--out", str(out), "-q", "--t-end", "20"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["model"] == model and s["mass_error_max"] < 1e-10
+    assert s["n_initial"] == pytest.approx(150.0)
+    rows = (out / "evacuation.csv").read_text().splitlines()
+    assert rows[0] == "t,evacuated" and len(rows) > 150
+    flow = (out / "outflow.csv").read_text().splitlines()
+    assert flow[0] == "t,end" and len(flow) == len(rows)
+    r = pv.PVDReader(out / "density.pvd")
+    r.set_active_time_value(r.time_values[-1])
+    g = r.read()[0]
+    assert {"rho", "velocity"} <= set(g.cell_data.keys()) and "phi" in g.point_data.keys()

@@ -1,0 +1,89 @@
+"""CWENO3 reconstruction on triangles: conservation, exactness and third order."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pedmesh import Exit, Room
+from pedmesh.macro.quadrature import cell_averages
+from pedmesh.macro.reconstruction import INTERIOR_BARY, build_reconstruction, reconstruct
+
+ROOM = Room([(0, 0), (4, 0), (4, 3), (0, 3)], exits=[Exit("e", [(4, 1), (4, 2)])])
+
+
+def _points(mesh, R):
+    P = mesh.points[mesh.triangles]
+    pts = np.zeros((mesh.n_triangles, 9, 2))
+    pts[:, :6] = R.edge_pt[mesh.triangle_edges].reshape(-1, 6, 2)
+    pts[:, 6:] = np.einsum("pb,mbd->mpd", INTERIOR_BARY, P)
+    return pts
+
+
+def _recon(mesh, q, order=3, eps_hat=0.1):
+    R = build_reconstruction(mesh)
+    out = np.zeros((mesh.n_triangles, 9, q.shape[1]))
+    reconstruct(q, order, R.stencil, R.R, R.opt_degree, R.moments, R.pairs, R.pair_inv,
+                R.n_pairs, R.h, eps_hat, np.ones(q.shape[1]), R.basis_pts, out)
+    return R, out
+
+
+def test_cell_averages_are_kept():
+    mesh = ROOM.mesh(max_area=0.01)
+    rng = np.random.default_rng(0)
+    q = rng.random((mesh.n_triangles, 3))  # rough data: all weights nonlinear
+    _, V = _recon(mesh, q)
+    # the 3 interior points are exact for quadratics: their mean is the cell average
+    np.testing.assert_allclose(V[:, 6:].mean(axis=1), q, rtol=0, atol=1e-13)
+
+
+def test_quadratics_are_exact_with_linear_weights():
+    mesh = ROOM.mesh(max_area=0.01)
+
+    def f(x, y):
+        return 1.0 + 0.3 * x - 0.7 * y + 0.2 * x * x - 0.1 * x * y + 0.4 * y * y
+
+    q = cell_averages(mesh, f)[:, None]
+    R, V = _recon(mesh, q, eps_hat=1e8)  # huge eps: linear weights, P = P_opt
+    pts = _points(mesh, R)
+    quad = R.opt_degree == 2
+    assert quad.mean() > 0.95
+    np.testing.assert_allclose(V[quad, :, 0], f(pts[quad, :, 0], pts[quad, :, 1]), atol=1e-11)
+
+
+def test_third_order_for_smooth_data():
+    def f(x, y):
+        return np.sin(1.3 * x) * np.cos(0.9 * y) + 0.3 * x * y
+
+    errs, hs = [], []
+    for a in (0.02, 0.005, 0.00125):
+        mesh = ROOM.mesh(max_area=a)
+        q = cell_averages(mesh, f)[:, None]
+        R, V = _recon(mesh, q)
+        pts = _points(mesh, R)
+        errs.append(np.abs(V[..., 0] - f(pts[..., 0], pts[..., 1])).mean())
+        hs.append(mesh.h)
+    order = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    assert order > 2.8, (errs, order)
+
+
+def test_no_new_extrema_at_a_jump():
+    mesh = ROOM.mesh(max_area=0.005)
+    x = mesh.centroids[:, 0]
+    q = np.where(x < 2.0 + 0.3 * mesh.centroids[:, 1], 1.0, 0.0)[:, None]
+    _, V = _recon(mesh, q)
+    # CWENO keeps overshoots small (the positivity limiter removes the rest)
+    assert V.max() < 1.1 and V.min() > -0.1
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_lower_orders(order):
+    mesh = ROOM.mesh(max_area=0.01)
+    q = cell_averages(mesh, lambda x, y: 2 * x + y)[:, None]
+    R, V = _recon(mesh, q, order=order)
+    if order == 1:
+        np.testing.assert_array_equal(V[..., 0], np.repeat(q, 9, axis=1))
+    else:
+        pts = _points(mesh, R)
+        ok = R.opt_degree >= 1
+        np.testing.assert_allclose(V[ok, :, 0], 2 * pts[ok, :, 0] + pts[ok, :, 1], atol=1e-10)
