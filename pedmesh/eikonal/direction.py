@@ -102,10 +102,7 @@ def _ccw_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _normalise(v: np.ndarray) -> np.ndarray:
     nrm = np.hypot(v[:, 0], v[:, 1])
-    out = np.zeros_like(v)
-    ok = nrm > 0
-    out[ok] = v[ok] / nrm[ok, None]
-    return out
+    return np.divide(v, nrm[:, None], out=np.zeros_like(v), where=nrm[:, None] > 0)
 
 
 def _jamb_overrides(mesh: TriMesh) -> np.ndarray:
