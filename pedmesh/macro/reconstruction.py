@@ -279,6 +279,27 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
     for i in range(m):
         deg = opt_degree[i] if order >= 2 else 0
         npair = n_pairs[i]
+        if deg > 0 and npair > 0:
+            # constant data around the cell (e.g. the empty parts of a room): nothing to do
+            flat = True
+            for s in range(stencil.shape[1]):
+                j = stencil[i, s]
+                if j < 0:
+                    break
+                for v in range(nv):
+                    if qbar[j, v] != qbar[i, v]:
+                        flat = False
+                        break
+                if not flat:
+                    break
+            if flat:
+                for kp in range(npair):
+                    for v in range(nv):
+                        if (qbar[pairs[i, kp, 0], v] != qbar[i, v]
+                                or qbar[pairs[i, kp, 1], v] != qbar[i, v]):
+                            flat = False
+                if flat:
+                    deg = 0
         for v in range(nv):
             q0 = qbar[i, v]
             if deg == 0 or npair == 0:

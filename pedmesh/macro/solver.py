@@ -92,6 +92,7 @@ class FVSolver:
         self.options = options or FVOptions()
         self.exit_kind = model.check_exit(self.options.exit)
         self.recon = build_reconstruction(mesh)
+        model.bind(mesh)
         self.boundary_state = boundary_state
         e2t = mesh.edge_triangles
         self.e2t = e2t
@@ -257,6 +258,9 @@ class FVSolver:
         S = model.source(np.ascontiguousarray(V[:, 6:9]).reshape(-1, nv), self._e_int_x,
                          self._e_int_y)
         K.add_point_mean(np.ascontiguousarray(S), dQ)
+        C = model.cell_source(Q)
+        if C is not None:
+            dQ += C
         out = np.bincount(self.exit_owner, weights=F[self.exits, 0], minlength=self.n_exits)
         return dQ, out
 
@@ -279,7 +283,8 @@ class FVSolver:
                 _, ab = self.model.flux(b["qL"].reshape(-1, nv), b["qR"].reshape(-1, nv),
                                         b["nx"], b["ny"], b["ex"], b["ey"])
                 K.max_alpha(ab, b["idx"], alpha)
-        return K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, self.options.cfl)
+        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, self.options.cfl)
+        return min(dt, self.model.source_dt(Q))
 
     def step(self, state: FVState, dt: float) -> None:
         """One Shu-Osher SSP-RK3 step of length ``dt`` [s], in place."""

@@ -136,3 +136,8 @@ def _macro_factory(model: str, params: set[str]):
 register_model("pw", _macro_factory("pw", {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}),
                aliases=("payne-whitham",))
 register_model("rdue", _macro_factory("rdue", {"U_f", "beta"}), aliases=("hughes",))
+_BASE = {"U_f", "beta", "tau", "rho_cut", "u_max"}
+_SFM = {"A", "B", "k", "kappa", "m", "r"}
+register_model("mac1", _macro_factory("mac1", _BASE | _SFM | {"walls", "friction", "cutoff"}))
+for _name in ("mac2-local", "mac2-local-friction", "mac2-nonlocal", "mac2-nonlocal-friction"):
+    register_model(_name, _macro_factory(_name, _BASE | _SFM | {"lr_strength", "lr_length", "gamma1"}))

@@ -10,8 +10,9 @@ velocity:
 * ``mac2-local`` (issue 6) and ``eos`` (issue 8) use other pressure laws.
 
 Numerics at the quadrature points: the velocity is desingularised near vacuum
-(Kurganov-Petrova, ``u = sqrt(2) rho m / sqrt(rho^4 + max(rho^4, rho_cut^4))``) and capped
-at ``u_max``; the flux is Rusanov with wave speed ``|u.n| + c(rho)``; walls are mirror
+(Kurganov-Petrova, ``u = sqrt(2) rho m / sqrt(rho^4 + max(rho^4, rho_cut^4))``) and, where
+``rho < 10 rho_cut`` (the thin film a pressure drives ahead of a front into empty space),
+capped at ``u_max``; the flux is Rusanov with wave speed ``|u.n| + c(rho)``; walls are mirror
 states (zero mass flux); exits open onto empty space (``vacuum``: Rusanov against rho = 0,
 so mass only leaves) or are ``transmissive`` (zero-gradient, u.n clipped >= 0).
 """
@@ -30,7 +31,7 @@ from .base import MacroModel, register_macro_model
 __all__ = ["BarotropicModel", "PressureLaw", "PayneWhitham"]
 
 SQRT2 = math.sqrt(2.0)
-ISOTHERMAL, QUADRATIC, TABLE = 0, 1, 2
+ISOTHERMAL, QUADRATIC, TABLE, SPEED_ONLY = 0, 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -48,6 +49,12 @@ class PressureLaw:
     @classmethod
     def quadratic(cls, gamma: float) -> "PressureLaw":
         return cls(QUADRATIC, np.array([float(gamma)]))
+
+    @classmethod
+    def speed_only(cls, gamma: float) -> "PressureLaw":
+        """No pressure in the flux, but the Rusanov wave speed includes sqrt(gamma rho):
+        for a repulsion that acts as an un-upwinded pressure in the sources (mac1)."""
+        return cls(SPEED_ONLY, np.array([float(gamma)]))
 
     def pressure(self, rho):
         r = np.asarray(rho, float)
@@ -73,6 +80,8 @@ def _p_c(kind, prm, rho):
         return prm[0] * prm[0] * rho, prm[0]
     if kind == QUADRATIC:
         return 0.5 * prm[0] * rho * rho, math.sqrt(prm[0] * rho)
+    if kind == SPEED_ONLY:
+        return 0.0, math.sqrt(prm[0] * rho)
     # TABLE: prm = [n, rho_0..rho_{n-1}, p_0..p_{n-1}, dp_0..dp_{n-1}] (Hermite cubic)
     n = int(prm[0])
     r0 = prm[1]
@@ -124,6 +133,8 @@ def _prim(r, mx, my, rho_cut, umax):
     if r >= rho_cut:  # the formula reduces to m / rho exactly
         ux = mx / r
         uy = my / r
+        if r >= 10.0 * rho_cut:
+            return r, ux, uy
     else:
         r4 = r * r * r * r
         c4 = rho_cut * rho_cut * rho_cut * rho_cut
@@ -131,7 +142,7 @@ def _prim(r, mx, my, rho_cut, umax):
         ux = SQRT2 * r * mx / d
         uy = SQRT2 * r * my / d
     s2 = ux * ux + uy * uy
-    if s2 > umax * umax:
+    if s2 > umax * umax:  # near vacuum only (rho < 10 rho_cut): cap the velocity
         f = umax / math.sqrt(s2)
         ux *= f
         uy *= f
@@ -218,9 +229,10 @@ class BarotropicModel(MacroModel):
         self.law = law
         #: no pressure (momentum flux rho u (x) u only): the flux limiter then also keeps the
         #: velocity within the bounds of the neighbourhood (the first-order scheme does)
-        self.pressureless = law.kind == ISOTHERMAL and float(law.params[0]) == 0.0
+        self.pressureless = (law.kind == ISOTHERMAL and float(law.params[0]) == 0.0) or \
+            law.kind == SPEED_ONLY
         self.U_f, self.beta, self.tau, self.rho_cut = float(U_f), float(beta), float(tau), float(rho_cut)
-        #: velocity cap [m/s] at near-vacuum points (default 2.5 U_f)
+        #: velocity cap [m/s] at near-vacuum points (rho < 10 rho_cut; default 2.5 U_f)
         self.u_max = float(u_max) if u_max is not None else 2.5 * self.U_f
 
     def flux(self, qL, qR, nx, ny, ex, ey):

@@ -47,6 +47,18 @@ class MacroModel:
         """Source (k, nv) at interior quadrature points."""
         return np.zeros_like(q)
 
+    def bind(self, mesh) -> None:
+        """Prepare mesh-dependent operators (called once by the solver)."""
+
+    def cell_source(self, Q):
+        """Cell-average source (m, nv) computed from cell averages (nonlocal terms), or
+        None."""
+        return None
+
+    def source_dt(self, Q) -> float:
+        """Largest stable time step [s] of the sources (inf if they do not limit it)."""
+        return np.inf
+
     def velocity(self, q):
         """(k, 2) velocity [m/s] of the states (for output)."""
         raise NotImplementedError

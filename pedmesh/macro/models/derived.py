@@ -1,0 +1,166 @@
+"""The paper's continuum models derived from the social force model.
+
+``mac1`` (direct mean-field model, paper eq. mac1)::
+
+    rho_t + div(rho u) = 0
+    (rho u)_t + div(rho u (x) u) = rho (U_e e - u)/tau
+        + rho int Phi(|x-y|) (x-y)/|x-y| rho(y) dy                       (repulsion)
+        + rho int Psi(|x-y|)/|x-y|^2 <u(y)-u(x), (x-y)^perp> (x-y)^perp rho(y) dy   (friction)
+
+with the SFM kernels Phi, Psi (:mod:`pedmesh.macro.kernels`), sparse operators built once per
+mesh (:mod:`pedmesh.macro.nonlocal_ops`), walls acting through mirror images, and the
+Rusanov wave speed ``|u.n| + sqrt(gamma1 rho)`` (the repulsion is an un-upwinded pressure).
+
+``mac2`` family (hydrodynamic scaling, paper eq. mac2) with S1 in {local f22, nonlocal f21}
+and S2 in {nonlocal friction f31, none f32}:
+
+* ``mac2-local``: S1 local: the repulsive pressure ``p = gamma1 rho^2 / 2`` in the flux.
+  The paper prints F2 = +gamma1 grad rho; the expansion of the repulsive integral gives
+  -gamma1 grad rho (its substitution drops a sign), i.e. a pressure, which is implemented;
+* ``mac2-local-friction``: plus the nonlocal friction f31 with the long-range kernel;
+* ``mac2-nonlocal``: S1 = f21 with the paper's long-range kernel 1/(1 + r^2) (scaled by
+  ``lr_strength``, default 0.01 = the paper's epsilon), by FFT convolution;
+* ``mac2-nonlocal-friction``: f21 and f31, both long-range.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...errors import ParameterError
+from ..kernels import LongRange, SFMFriction, SFMRepulsion, gamma1, gamma2
+from .barotropic import BarotropicModel, PressureLaw
+from .base import register_macro_model
+
+__all__ = ["Mac1", "Mac2"]
+
+_SFM_KEYS = ("A", "B", "k", "kappa", "m", "r")
+
+
+def _sfm_kernels(A=2000.0, B=0.08, k=1.2e5, kappa=2.4e5, m=60.0, r=0.15):
+    for name, v in (("A", A), ("B", B), ("k", k), ("kappa", kappa), ("m", m), ("r", r)):
+        if not (np.isfinite(v) and v > 0):
+            raise ParameterError(f"parameter '{name}' must be positive, got {v!r}")
+    return SFMRepulsion(A=A, B=B, k=k, m=m, r_ij=2 * r), SFMFriction(kappa=kappa, m=m, r_ij=2 * r)
+
+
+class Mac1(BarotropicModel):
+    """The direct nonlocal continuum model (see module docstring)."""
+
+    def __init__(self, *, U_f=1.034, beta=0.05, tau=0.5, rho_cut=1e-3, u_max=None,
+                 walls: float = 1.0, friction: float = 1.0, cutoff: float = 1.0, **sfm) -> None:
+        unknown = set(sfm) - set(_SFM_KEYS)
+        if unknown:
+            raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
+        self.phi, self.psi = _sfm_kernels(**sfm)
+        self.sfm = {k: float(v) for k, v in sfm.items()}
+        self.gamma1 = gamma1(self.phi)
+        self.gamma2 = gamma2(self.psi)
+        super().__init__("mac1", PressureLaw.speed_only(self.gamma1), U_f=U_f, beta=beta,
+                         tau=tau, rho_cut=rho_cut, u_max=u_max)
+        self.walls = bool(walls)
+        self.use_friction = bool(friction)
+        if not (np.isfinite(cutoff) and cutoff > 2 * self.phi.r_ij / 2):
+            raise ParameterError(f"parameter 'cutoff' must exceed the body diameter, got {cutoff!r}")
+        self.cutoff = float(cutoff)
+        self.ops = None
+
+    def bind(self, mesh) -> None:
+        from ..nonlocal_ops import build_pair_operators
+
+        cache = mesh._cache
+        key = ("mac1-ops", self.phi, self.psi if self.use_friction else None, self.cutoff,
+               self.walls)
+        if key not in cache:
+            cache[key] = build_pair_operators(mesh, self.phi,
+                                              self.psi if self.use_friction else None,
+                                              cutoff=self.cutoff, walls=self.walls)
+        self.ops = cache[key]
+        if self.use_friction:
+            K = self.ops
+            self._k_trace = (K.Kxx + K.Kyy).tocsr()
+
+    def cell_source(self, Q):
+        rho = np.maximum(Q[:, 0], 0.0)
+        out = np.zeros_like(Q)
+        out[:, 1:3] = self.ops.repulsion(rho, walls=self.walls)
+        if self.use_friction:
+            out[:, 1:3] += self.ops.friction(rho, Q[:, 1:3])
+        return out
+
+    def source_dt(self, Q) -> float:
+        """The friction relaxes velocity differences at rate ~ sum_j tr(K_ij) rho_j; keep
+        dt below 2 / rate (SSP-RK3 is stable to 2.5)."""
+        if not self.use_friction:
+            return np.inf
+        rate = self._k_trace @ np.maximum(Q[:, 0], 0.0)
+        mx = float(rate.max()) if len(rate) else 0.0
+        return 2.0 / mx if mx > 0 else np.inf
+
+    def parameters(self) -> dict:
+        return {**super().parameters(), **self.sfm, "gamma1": self.gamma1, "gamma2": self.gamma2,
+                "walls": self.walls, "friction": self.use_friction, "cutoff": self.cutoff}
+
+
+class Mac2(BarotropicModel):
+    """The hydrodynamic-scaling models (see module docstring)."""
+
+    def __init__(self, name: str, *, local: bool, friction: bool, U_f=1.034, beta=0.05,
+                 tau=0.5, rho_cut=1e-3, u_max=None, lr_strength: float = 0.01,
+                 lr_length: float = 1.0, gamma1: float | None = None, **sfm) -> None:
+        unknown = set(sfm) - set(_SFM_KEYS)
+        if unknown:
+            raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
+        phi, _ = _sfm_kernels(**sfm)
+        self.local = local
+        self.use_friction = friction
+        self.sfm = {k: float(v) for k, v in sfm.items()}
+        if gamma1 is None:
+            from ..kernels import gamma1 as _g1
+
+            gamma1 = _g1(phi)
+        if not (np.isfinite(gamma1) and gamma1 > 0):
+            raise ParameterError(f"parameter 'gamma1' must be positive, got {gamma1!r}")
+        for k_, v in (("lr_strength", lr_strength), ("lr_length", lr_length)):
+            if not (np.isfinite(v) and v > 0):
+                raise ParameterError(f"parameter '{k_}' must be positive, got {v!r}")
+        self.gamma1 = float(gamma1)
+        self.lr = LongRange(strength=float(lr_strength), length=float(lr_length))
+        law = PressureLaw.quadratic(self.gamma1) if local else PressureLaw.isothermal(0.0)
+        super().__init__(name, law, U_f=U_f, beta=beta, tau=tau, rho_cut=rho_cut, u_max=u_max)
+        self.op = None
+
+    def bind(self, mesh) -> None:
+        if self.local and not self.use_friction:
+            return
+        from ..nonlocal_ops import LongRangeOperator
+
+        key = ("lr-op", self.lr)
+        if key not in mesh._cache:
+            mesh._cache[key] = LongRangeOperator(mesh, self.lr)
+        self.op = mesh._cache[key]
+
+    def cell_source(self, Q):
+        if self.op is None:
+            return None
+        rho = np.maximum(Q[:, 0], 0.0)
+        out = np.zeros_like(Q)
+        if not self.local:
+            out[:, 1:3] += self.op.repulsion(rho)
+        if self.use_friction:
+            out[:, 1:3] += self.op.friction(rho, Q[:, 1:3])
+        return out
+
+    def parameters(self) -> dict:
+        return {**super().parameters(), **self.sfm, "gamma1": self.gamma1,
+                "lr_strength": self.lr.strength, "lr_length": self.lr.length}
+
+
+register_macro_model("mac1", lambda **kw: Mac1(**kw))
+register_macro_model("mac2-local", lambda **kw: Mac2("mac2-local", local=True, friction=False, **kw))
+register_macro_model("mac2-local-friction",
+                     lambda **kw: Mac2("mac2-local-friction", local=True, friction=True, **kw))
+register_macro_model("mac2-nonlocal",
+                     lambda **kw: Mac2("mac2-nonlocal", local=False, friction=False, **kw))
+register_macro_model("mac2-nonlocal-friction",
+                     lambda **kw: Mac2("mac2-nonlocal-friction", local=False, friction=True, **kw))
