@@ -283,6 +283,9 @@ class FVSolver:
                 _, ab = self.model.flux(b["qL"].reshape(-1, nv), b["qR"].reshape(-1, nv),
                                         b["nx"], b["ny"], b["ex"], b["ey"])
                 K.max_alpha(ab, b["idx"], alpha)
+        floor = float(getattr(self.model, "speed_floor", 0.0))
+        if floor > 0:
+            np.maximum(alpha, floor, out=alpha)
         dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, self.options.cfl)
         return min(dt, self.model.source_dt(Q))
 

@@ -267,6 +267,16 @@ class BarotropicModel(MacroModel):
         velocities(q, self.rho_cut, self.u_max, out)
         return out
 
+    @property
+    def speed_floor(self) -> float:
+        """Pedestrians accelerate to U_f within a few tau: the CFL wave speed never assumes
+        less (a crowd at rest has no other wave speed when the model has no pressure)."""
+        return self.U_f
+
+    def source_dt(self, Q) -> float:
+        """Resolve the relaxation: dt <= tau / 2 (SSP-RK3 itself is stable to 2.5 tau)."""
+        return 0.5 * self.tau
+
     def parameters(self) -> dict:
         return {"U_f": self.U_f, "beta": self.beta, "tau": self.tau, "rho_cut": self.rho_cut,
                 "u_max": self.u_max}

@@ -59,6 +59,9 @@ class MacroModel:
         """Largest stable time step [s] of the sources (inf if they do not limit it)."""
         return np.inf
 
+    #: smallest wave speed [m/s] the CFL condition assumes
+    speed_floor: float = 0.0
+
     def velocity(self, q):
         """(k, 2) velocity [m/s] of the states (for output)."""
         raise NotImplementedError

@@ -91,11 +91,12 @@ class Mac1(BarotropicModel):
     def source_dt(self, Q) -> float:
         """The friction relaxes velocity differences at rate ~ sum_j tr(K_ij) rho_j; keep
         dt below 2 / rate (SSP-RK3 is stable to 2.5)."""
+        dt = super().source_dt(Q)
         if not self.use_friction:
-            return np.inf
+            return dt
         rate = self._k_trace @ np.maximum(Q[:, 0], 0.0)
         mx = float(rate.max()) if len(rate) else 0.0
-        return 2.0 / mx if mx > 0 else np.inf
+        return min(dt, 2.0 / mx) if mx > 0 else dt
 
     def parameters(self) -> dict:
         return {**super().parameters(), **self.sfm, "gamma1": self.gamma1, "gamma2": self.gamma2,
