@@ -18,6 +18,7 @@ SUBCOMMANDS = {
     "mesh": "pedmesh.cli.mesh",
     "route": "pedmesh.cli.route",
     "run": "pedmesh.cli.run",
+    "compare": "pedmesh.cli.compare",
 }
 
 

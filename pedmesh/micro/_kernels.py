@@ -109,22 +109,8 @@ def pair_accel(x, v, n, cell_start, cell_order, nx, ny, rc_f, rc_d, rij, A, B, k
                             rhoi += w
                             rho[j] += w
                         if d2 < rc_f2 and d2 > 0.0:
-                            d = math.sqrt(d2)
-                            nx_ = dx / d
-                            ny_ = dy / d
-                            ov = rij - d
-                            f = A * math.exp(ov * invB)
-                            fx = f * nx_
-                            fy = f * ny_
-                            if ov > 0.0:
-                                fx += k * ov * nx_
-                                fy += k * ov * ny_
-                                # kappa (r_ij - d) <v_j - v_i, t_ij> t_ij, t_ij = (-n_y, n_x)
-                                tx = -ny_
-                                ty = nx_
-                                ft = kappa * ov * ((v[j, 0] - vxi) * tx + (v[j, 1] - vyi) * ty)
-                                fx += ft * tx
-                                fy += ft * ty
+                            fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - vxi,
+                                                v[j, 1] - vyi, rij, A, invB, k, kappa)
                             fx *= inv_m
                             fy *= inv_m
                             fxi += fx
@@ -182,6 +168,30 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, pi, pj):
     return m
 
 
+@nb.njit(cache=True, inline="always")
+def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa):
+    """Force [N] on pedestrian i from j: ``dx, dy`` = x_i - x_j at distance ``d`` > 0 and
+    ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((r_ij - d)/B) and the body force
+    k (r_ij - d)_+ along n_ij, and the sliding friction kappa (r_ij - d)_+ <v_j - v_i, t_ij>
+    t_ij with t_ij = (-n_y, n_x). The one definition used by the simulator and the
+    calibration."""
+    nx_ = dx / d
+    ny_ = dy / d
+    ov = rij - d
+    f = A * math.exp(ov * invB)
+    fx = f * nx_
+    fy = f * ny_
+    if ov > 0.0:
+        fx += k * ov * nx_
+        fy += k * ov * ny_
+        tx = -ny_
+        ty = nx_
+        ft = kappa * ov * (dvx * tx + dvy * ty)
+        fx += ft * tx
+        fy += ft * ty
+    return fx, fy
+
+
 @nb.njit(cache=True)
 def pair_accel_list(x, v, n, pi, pj, npairs, rc_f, rc_d, rij, A, B, k, kappa, m, R, F, rho):
     """As :func:`pair_accel`, over a precomputed pair list (a superset of the pairs in range)."""
@@ -206,21 +216,8 @@ def pair_accel_list(x, v, n, pi, pj, npairs, rc_f, rc_d, rij, A, B, k, kappa, m,
             rho[i] += w
             rho[j] += w
         if d2 < rc_f2 and d2 > 0.0:
-            d = math.sqrt(d2)
-            nx_ = dx / d
-            ny_ = dy / d
-            ov = rij - d
-            f = A * math.exp(ov * invB)
-            fx = f * nx_
-            fy = f * ny_
-            if ov > 0.0:
-                fx += k * ov * nx_
-                fy += k * ov * ny_
-                tx = -ny_
-                ty = nx_
-                ft = kappa * ov * ((v[j, 0] - v[i, 0]) * tx + (v[j, 1] - v[i, 1]) * ty)
-                fx += ft * tx
-                fy += ft * ty
+            fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
+                                rij, A, invB, k, kappa)
             fx *= inv_m
             fy *= inv_m
             F[i, 0] += fx

@@ -51,10 +51,17 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
         "t_end": t_end,
         "parameters": run.parameters(),
     }
+    warnings = list(getattr(run, "warnings", []))
+    if warnings:
+        header["warnings"] = warnings
+        for w in warnings:
+            print(f"pedmesh: warning: {w}", file=sys.stderr)
     writer = RunWriter(out, header, exit_names=mesh.exit_names,
                        outflow=hasattr(run, "outflow_rates"))
+    tty = sys.stderr.isatty()
     bar = tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
                dynamic_ncols=True, desc=f"{name}", leave=True,
+               mininterval=0.5 if tty else 30.0,
                bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
                           "[{elapsed}<{remaining}] {postfix}")
     next_sample = 0.0
@@ -71,6 +78,8 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
             writer.sample(t, run.evacuated)
             if hasattr(run, "outflow_rates"):
                 writer.outflow(t, run.outflow_rates())
+            if hasattr(run, "flush_records"):
+                run.flush_records(writer)
             next_sample += run.sample_interval * max(1, math.floor((t - next_sample) / run.sample_interval + 1e-9) + 1)
         if t >= next_frame - 1e-9:
             run.write_frame(writer, frame)
@@ -87,17 +96,21 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
             if run.t - last_bar >= 0.5 or run.done:
                 bar.update(round(min(run.t, t_end) - last_bar, 3))
                 last_bar = min(run.t, t_end)
-                bar.set_postfix_str(f"inside {run.remaining:.0f}/{run.n_initial}", refresh=False)
+                bar.set_postfix_str(f"inside {run.remaining:.0f}/{run.n_initial:.0f}", refresh=False)
         if not run.done:
             status = "stopped at t_end"
         # the final state
         if run.t > last_frame_t + 1e-9:
             writer.sample(run.t, run.evacuated)
+            if hasattr(run, "outflow_rates"):
+                writer.outflow(run.t, run.outflow_rates())
+            if hasattr(run, "flush_records"):
+                run.flush_records(writer)
             run.write_frame(writer, frame)
             frame += 1
-        if run.done:
-            bar.total = round(run.t, 3)
         bar.update(round(min(run.t, t_end) - last_bar, 3))
+        if run.done:
+            bar.total = bar.n
     except KeyboardInterrupt:
         status = "interrupted"
     except SimulationError as exc:

@@ -84,7 +84,29 @@ class SFMRun:
         return {**asdict(self.params), **asdict(self.numerics),
                 "reroute": not self.static_routes}
 
+    def outflow_rates(self) -> np.ndarray:
+        """Flow [ped/s] through each exit from the kernel density and kernel velocity at the
+        exit (the paper's f_c for the particle model)."""
+        from ..analysis import particle_outflow
+
+        return particle_outflow(mesh=self.mesh, positions=self.sim.positions,
+                                velocities=self.sim.velocities, R=self.params.R)
+
+    def flush_records(self, writer: RunWriter) -> None:
+        """Append the pedestrians who left since the last call to exits.csv."""
+        sim = self.sim
+        done = np.flatnonzero(np.isfinite(sim.exit_time))
+        new = done[~np.isin(done, getattr(self, "_written", np.zeros(0, np.int64)))]
+        if len(new) or not hasattr(self, "_written"):
+            new = new[np.argsort(sim.exit_time[new], kind="stable")]
+            names = self.mesh.exit_names
+            writer.append_rows("exits.csv", "id,exit,t",
+                               [f"{i},{names[sim.exit_id[i]]},{sim.exit_time[i]:.4f}" for i in new])
+            self._written = done
+
     def write_frame(self, writer: RunWriter, frame: int) -> None:
+        from ..analysis import kernel_velocity
+
         sim = self.sim
         v = sim.velocities
         writer.pedestrian_frame(sim.t, sim.positions, {
@@ -93,7 +115,10 @@ class SFMRun:
             "speed": np.hypot(v[:, 0], v[:, 1]) if len(v) else np.zeros(0),
             "density": sim.densities,
         })
-        writer.density_frame(sim.t, self.mesh, point_data={"density": sim.vertex_density()})
+        kv = kernel_velocity(positions=sim.positions, velocities=v, points=self.mesh.points,
+                             R=self.params.R)
+        writer.density_frame(sim.t, self.mesh, point_data={"density": sim.vertex_density(),
+                                                           "velocity": kv})
         writer.trajectory_frame(frame, sim.active_ids, sim.positions, 1.0 / self.output_interval,
                                 f"social force model, output every {self.output_interval:g} s")
 

@@ -107,6 +107,7 @@ class RunWriter:
         self._density: PVDWriter | None = None
         self._peds: PVDWriter | None = None
         self._traj = None
+        self._extra: dict = {}
         self.frames = 0
 
     # ------------------------------------------------------------------ pieces
@@ -124,6 +125,17 @@ class RunWriter:
         if self._outflow is not None:
             self._outflow.write(f"{t:.4f}," + ",".join(f"{f:.6g}" for f in flows) + "\n")
             self._outflow.flush()
+
+    def append_rows(self, name: str, header: str, rows: Sequence[str]) -> None:
+        """Append text rows to a CSV file of the run (created with ``header``)."""
+        path = self.dir / name
+        if name not in self._extra:
+            self._extra[name] = open(path, "w", encoding="utf-8")
+            self._extra[name].write(header + "\n")
+        f = self._extra[name]
+        if rows:
+            f.write("\n".join(rows) + "\n")
+        f.flush()
 
     def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
         """Add a frame to density.pvd."""
@@ -152,7 +164,7 @@ class RunWriter:
 
     def finish(self, **summary: Any) -> dict[str, Any]:
         """Close the files and write the final summary; returns it."""
-        for f in (self._evac, self._outflow, self._traj):
+        for f in (self._evac, self._outflow, self._traj, *self._extra.values()):
             if f is not None and not f.closed:
                 f.close()
         for w in (self._density, self._peds):

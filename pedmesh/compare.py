@@ -1,0 +1,261 @@
+"""Comparing models on one room: run each (reusing finished runs), then plots and tables.
+
+Model specifications are ``name`` or ``name:param=value:param=value`` (e.g. ``pw:c0=0.5``);
+each runs into ``<out>/<label>/`` with the shared output contract, where the label is the
+specification with ``:`` and ``=`` made file-name safe. The first model is the reference
+the distances are measured against (normally ``sfm``).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from .analysis import (
+    curve_distance,
+    density_flow_diagram,
+    density_l1,
+    evacuation_times_from_curve,
+    reference_flow,
+)
+from .errors import ParameterError
+from .run.results import RunResult
+
+__all__ = ["ModelSpec", "parse_model_specs", "run_comparison", "ComparisonResult"]
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A model name with parameter overrides and a label."""
+
+    name: str
+    overrides: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        if not self.overrides:
+            return self.name
+        return self.name + "_" + "_".join(f"{k}{v:g}" if isinstance(v, float) else f"{k}{v}"
+                                          for k, v in self.overrides.items())
+
+
+def parse_model_specs(text: str | Sequence[str]) -> list[ModelSpec]:
+    """``"sfm,mac1,pw:c0=0.5"`` -> specs. Parameters after ``:`` are ``NAME=VALUE``."""
+    from .micro.params import parse_param_overrides
+    from .run import get_model
+
+    items = [s.strip() for s in (text.split(",") if isinstance(text, str) else text) if s.strip()]
+    if not items:
+        raise ParameterError("no models given (e.g. --models sfm,mac1,rdue)")
+    out = []
+    for it in items:
+        name, *params = it.split(":")
+        canon, _ = get_model(name.strip())
+        out.append(ModelSpec(canon, parse_param_overrides(params)))
+    labels = [s.label for s in out]
+    for lab in labels:
+        if labels.count(lab) > 1:
+            raise ParameterError(f"model '{lab}' is given twice")
+    return out
+
+
+def _reusable(res: RunResult, spec: ModelSpec, geometry: str, mesh_options: dict) -> bool:
+    if not res.finished or res.model != spec.name:
+        return False
+    params = res.summary.get("parameters", {})
+    for k, v in spec.overrides.items():
+        if k not in params or params[k] != v:
+            return False
+    mesh = res.summary.get("mesh", {})
+    return all(mesh.get(k) == v for k, v in mesh_options.items())
+
+
+@dataclass
+class ComparisonResult:
+    """Runs of a comparison and the table rows written to comparison.csv."""
+
+    runs: dict
+    rows: list
+    out_dir: Path
+
+
+def _outflow_total(res: RunResult, kernel: bool = False):
+    """(t, total exit flow [ped/s]). For particle runs the plain crossing rate (2 s window)
+    unless ``kernel``: then the paper's f_c from the kernel fields at the exits, which sees
+    only the pedestrians still inside (those who crossed are removed) and so reads about
+    half the crossing rate."""
+    et = res.exit_times
+    if len(et) and not kernel:
+        t = res.evacuation[0]
+        from .analysis import crossing_rate
+
+        return t, crossing_rate(exit_times=et, t=t, window=2.0)
+    t, f, _ = res.outflow
+    if len(t) == 0:
+        return None
+    return t, f.sum(axis=1)
+
+
+def _fd_samples(res: RunResult, mesh, every: float = 1.0):
+    """(density, flow) of every cell in every frame at least ``every`` seconds apart."""
+    rho_s, flow_s = [], []
+    last = -math.inf
+    for t, _ in res.density_frames:
+        if t - last < every - 1e-9 or t <= 0:
+            continue
+        last = t
+        _, rho, vel = res.density_at(t, mesh)
+        rho_s.append(rho)
+        flow_s.append(rho * np.hypot(vel[:, 0], vel[:, 1]))
+    if not rho_s:
+        return np.zeros(0), np.zeros(0)
+    return np.concatenate(rho_s), np.concatenate(flow_s)
+
+
+def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, *,
+                   t_end: float = 1000.0, quiet: bool = False, geometry: str | None = None,
+                   mesh_options: dict | None = None, density_times: Sequence[float] | None = None,
+                   reuse: bool = True, plots: bool = True) -> ComparisonResult:
+    """Run (or reuse) every model, then write plots, comparison.csv and comparison.md."""
+    from .run import run_model
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    mesh_options = dict(mesh_options or {})
+    runs: dict[str, RunResult] = {}
+    for k, spec in enumerate(specs):
+        d = out / spec.label
+        prefix = f"[{k + 1}/{len(specs)}] {spec.label}"
+        if reuse and (d / "summary.json").exists():
+            res = RunResult.load(d)
+            if _reusable(res, spec, str(geometry), mesh_options):
+                if not quiet:
+                    print(f"{prefix}: reusing the finished run in {d}", file=sys.stderr)
+                runs[spec.label] = res
+                continue
+        if not quiet:
+            print(f"{prefix}: running", file=sys.stderr)
+        run_model(room, mesh, spec.name, overrides=spec.overrides, t_end=t_end, out_dir=d,
+                  quiet=quiet, geometry=str(geometry), mesh_options=mesh_options)
+        runs[spec.label] = RunResult.load(d)
+    labels = list(runs)
+    ref = runs[labels[0]]
+    n0 = float(ref.summary["n_initial"])
+    if density_times is None:
+        t90 = ref.summary.get("t_evac_90") or float(ref.evacuation[0][-1])
+        density_times = [round(f * t90) for f in (0.25, 0.5, 0.75)]
+    rows = []
+    for lab in labels:
+        res = runs[lab]
+        s = res.summary
+        t, n = res.evacuation
+        row: dict[str, Any] = {
+            "label": lab, "model": res.model,
+            "t_evac_50": s.get("t_evac_50"), "t_evac_90": s.get("t_evac_90"),
+            "t_evac_100": s.get("t_evac_100"), "steps": s.get("steps"),
+            "wall_time_s": s.get("wall_time_s"),
+        }
+        rt, rn = ref.evacuation
+        row["evac_curve_distance"] = curve_distance(t1=t, n1=n, t2=rt, n2=rn, n_total=n0)
+        row["dT90_s"] = (None if s.get("t_evac_90") is None or ref.summary.get("t_evac_90") is None
+                         else s["t_evac_90"] - ref.summary["t_evac_90"])
+        fo, fr = _outflow_total(res), _outflow_total(ref)
+        if fo is not None and fr is not None:
+            end = min(fo[0][-1], fr[0][-1])
+            g = np.arange(0.0, end, 0.5)
+            a = np.interp(g, *fo)
+            b = np.interp(g, *fr)
+            row["outflow_distance"] = float(np.mean(np.abs(a - b)) / max(np.mean(np.abs(b)), 1e-12))
+        for tt in density_times:
+            try:
+                _, r1, _ = res.density_at(tt, mesh)
+                _, r0, _ = ref.density_at(tt, mesh)
+                row[f"density_L1_t{tt:g}"] = density_l1(mesh=mesh, rho1=r1, rho2=r0) / n0
+            except Exception:  # a run that ended before tt has no frame there
+                row[f"density_L1_t{tt:g}"] = None
+        rows.append(row)
+    _write_tables(out, rows, labels[0])
+    if plots:
+        _plots(out, room, mesh, runs, n0, density_times)
+    return ComparisonResult(runs, rows, out)
+
+
+def _fmt(v, digits=2):
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.{digits}f}" if abs(v) >= 0.01 or v == 0 else f"{v:.2e}"
+    return str(v)
+
+
+def _write_tables(out: Path, rows: list[dict], ref: str) -> None:
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    with open(out / "comparison.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in keys})
+    lines = [f"Comparison against `{ref}` (distances: mean |N_out(t) - N_ref(t)|/N, "
+             "relative outflow difference, density L1 / N at the given times).", "",
+             "| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    for r in rows:
+        lines.append("| " + " | ".join(_fmt(r.get(k), 4 if "distance" in k or "L1" in k else 1)
+                                       for k in keys) + " |")
+    (out / "comparison.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _plots(out, room, mesh, runs, n0, density_times) -> None:
+    from .plotting import _plt, plot_density, plot_evacuation, plot_fundamental, plot_outflow
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    plot_evacuation(ax, {k: r.evacuation for k, r in runs.items()}, n0)
+    fig.tight_layout()
+    fig.savefig(out / "evacuation.png", dpi=120)
+    plt.close(fig)
+    flows = {k: f for k, r in runs.items() if (f := _outflow_total(r)) is not None}
+    if flows:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        plot_outflow(ax, flows)
+        fig.tight_layout()
+        fig.savefig(out / "outflow.png", dpi=120)
+        plt.close(fig)
+    diagrams = {}
+    for k, r in runs.items():
+        d, f = _fd_samples(r, mesh)
+        if len(d):
+            diagrams[k] = density_flow_diagram(density=d, flow=f)
+    if diagrams:
+        fig, ax = plt.subplots(figsize=(6, 4))
+        rr = np.linspace(0, 10.5, 200)
+        plot_fundamental(ax, diagrams, (rr, reference_flow(density=rr)))
+        fig.tight_layout()
+        fig.savefig(out / "fundamental.png", dpi=120)
+        plt.close(fig)
+    labels = list(runs)
+    nt = len(density_times)
+    fig, axes = plt.subplots(nt, len(labels), figsize=(3.2 * len(labels), 1.9 * nt),
+                             squeeze=False)
+    tp = None
+    for i, tt in enumerate(density_times):
+        for j, lab in enumerate(labels):
+            ax = axes[i, j]
+            try:
+                ft, rho, _ = runs[lab].density_at(tt, mesh)
+                tp = plot_density(ax, mesh, rho, vmax=6.0, room=room)
+                ax.set_title(f"{lab}, t = {ft:.0f} s", fontsize=8)
+            except Exception:
+                ax.set_axis_off()
+            ax.set_xlabel("")
+            ax.set_ylabel("")
+            ax.tick_params(labelsize=6)
+    if tp is not None:
+        fig.colorbar(tp, ax=axes, shrink=0.8, label="density [ped/m^2]")
+    fig.savefig(out / "density.png", dpi=120)
+    plt.close(fig)
