@@ -34,7 +34,8 @@ def test_bad_mesh_option_is_one_line(geometries_dir, capsys):
     assert len(err) == 1 and "max_area" in err[0]
 
 
-@pytest.mark.parametrize("args", [["--help"], ["mesh", "--help"]])
+@pytest.mark.parametrize("args", [["--help"], ["mesh", "--help"], ["calibrate", "--help"],
+                                  ["compare", "--help"]])
 def test_help(args, capsys):
     with pytest.raises(SystemExit) as info:
         main(args)
@@ -148,3 +149,27 @@ def test_run_survives_sigterm(geometries_dir, tmp_path):
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "interrupted" and s["t_stop"] >= 2.4
     assert len(csv.read_text().splitlines()) > 25
+
+
+def test_calibrate_command(tmp_path, capsys):
+    out = tmp_path / "eos.json"
+    assert main(["calibrate", "--densities", "1,4", "--n", "120", "--replicas", "2",
+                 "--relax-time", "1", "--sample-time", "1", "--param", "A=1500", "-o",
+                 str(out), "-q"]) == 0
+    from pedmesh.calibration import load_eos
+
+    cal = load_eos(out)
+    assert cal["parameters"]["A"] == 1500.0 and len(cal["table"]) == 2
+    assert "written to" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--param", "v0=2"], "irrelevant parameter 'v0'"),
+    (["--densities", "1,x"], "--densities expects numbers"),
+    (["--densities", "1,12", "--n", "50"], "narrower than 3 cut-offs"),
+    (["--dt", "-1"], "'dt' must be positive"),
+])
+def test_calibrate_bad_arguments_are_one_line(tmp_path, capsys, args, message):
+    assert main(["calibrate", "-o", str(tmp_path / "e.json"), *args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1

@@ -19,6 +19,7 @@ SUBCOMMANDS = {
     "route": "pedmesh.cli.route",
     "run": "pedmesh.cli.run",
     "compare": "pedmesh.cli.compare",
+    "calibrate": "pedmesh.cli.calibrate",
 }
 
 

@@ -82,6 +82,8 @@ class MacroRun:
         self.options = MacroRunOptions(**parts["run"])
         self.name = model
         self.mesh = mesh
+        #: things the user should know about this run (e.g. a calibration for other parameters)
+        self.warnings = list(getattr(self.model, "warnings", []))
         self.solver = FVSolver(mesh, self.model, self.fv_options)
         if rho0 is None:
             if room is None or not room.start_areas:

@@ -91,7 +91,7 @@ def _check_positive(obj: Any) -> None:
 
 
 #: parameters whose values are words, not numbers
-TEXT_PARAMS = {"exit"}
+TEXT_PARAMS = {"exit", "calibration"}
 
 
 def parse_param_overrides(items: Iterable[str]) -> dict[str, float | str]:

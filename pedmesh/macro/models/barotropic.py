@@ -51,6 +51,33 @@ class PressureLaw:
         return cls(QUADRATIC, np.array([float(gamma)]))
 
     @classmethod
+    def table(cls, rho, p, dp) -> "PressureLaw":
+        """Monotone cubic Hermite p(rho) through nodes (rho_k, p_k) with slopes dp_k; below
+        the first node p = p_0 (rho/rho_0)^2, above the last a straight line."""
+        rho, p, dp = (np.asarray(a, float) for a in (rho, p, dp))
+        if len(rho) < 2 or np.any(np.diff(rho) <= 0) or np.any(np.diff(p) < 0) or np.any(dp < 0):
+            raise ParameterError("an equation of state needs increasing densities and a "
+                                 "non-decreasing pressure with non-negative slopes")
+        return cls(TABLE, np.concatenate([[len(rho)], rho, p, dp]))
+
+    @property
+    def pressured(self) -> bool:
+        return self.kind in (QUADRATIC, TABLE) or (self.kind == ISOTHERMAL and self.params[0] > 0)
+
+    def h_table(self, rho_max: float = 60.0, n: int = 4000):
+        """(rho, h) with h(rho) = int_0^rho c(s)/s ds on a grid (for the table law)."""
+        if self.kind != TABLE:
+            return np.zeros(2), np.zeros(2)
+        r = np.concatenate([[0.0], np.geomspace(1e-6, rho_max, n)])
+        c = self.sound_speed(r)
+        f = np.where(r > 0, c / np.where(r > 0, r, 1.0), 0.0)
+        # near 0, c ~ sqrt(rho): c/rho ~ rho^-1/2, integrable: integrate in sqrt(rho)
+        s = np.sqrt(r)
+        g = f * 2 * s  # d rho = 2 s ds
+        h = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(s))])
+        return np.ascontiguousarray(r), np.ascontiguousarray(h)
+
+    @classmethod
     def speed_only(cls, gamma: float) -> "PressureLaw":
         """No pressure in the flux, but the Rusanov wave speed includes sqrt(gamma rho):
         for a repulsion that acts as an un-upwinded pressure in the sources (mac1)."""
@@ -194,6 +221,90 @@ def transmissive(q, nx, ny, kind, prm, rho_cut, umax, F):
         F[k, 2] = r * uy * un + p * ny[k]
 
 
+@nb.njit(cache=True, inline="always")
+def _h(kind, prm, rho, h_rho, h_val):
+    """Riemann-invariant integral h(rho) = int_0^rho c(s)/s ds (isothermal: c0 ln rho, up to
+    a constant, which cancels)."""
+    if kind == ISOTHERMAL:
+        return prm[0] * math.log(rho)
+    if kind == QUADRATIC:
+        return 2.0 * math.sqrt(prm[0] * rho)
+    # table: interpolate the tabulated integral
+    n = h_rho.shape[0]
+    if rho >= h_rho[n - 1]:
+        _, c = _p_c(kind, prm, rho)
+        return h_val[n - 1] + c * math.log(rho / h_rho[n - 1])
+    lo = 0
+    hi = n - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if h_rho[mid] <= rho:
+            lo = mid
+        else:
+            hi = mid
+    w = (rho - h_rho[lo]) / (h_rho[hi] - h_rho[lo])
+    return h_val[lo] * (1 - w) + h_val[hi] * w
+
+
+@nb.njit(cache=True)
+def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
+    """Exact Godunov flux of the Riemann problem between each state and vacuum (empty space
+    beyond an exit), for a barotropic pressure: the left-moving rarefaction ends in vacuum,
+    and the flux is that of the state at x/t = 0 -- the left state if it is supersonic
+    outwards, vacuum if the whole fan moves inwards, else the sonic state where u = c(rho),
+    found through the Riemann invariant u + h(rho) = u_L + h(rho_L)."""
+    for k in range(q.shape[0]):
+        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+        F[k, 0] = 0.0
+        F[k, 1] = 0.0
+        F[k, 2] = 0.0
+        if r <= 0.0:
+            continue
+        n0, n1 = nx[k], ny[k]
+        un = ux * n0 + uy * n1
+        tx = ux - un * n0
+        ty = uy - un * n1
+        p, c = _p_c(kind, prm, r)
+        if c == 0.0 or un - c >= 0.0:  # pressureless, or supersonic outflow
+            if un <= 0.0:
+                continue
+            rs, us, ps = r, un, p
+        else:
+            if kind == ISOTHERMAL:
+                if un >= prm[0]:
+                    rs, us = r, un
+                else:
+                    rs = r * math.exp(un / prm[0] - 1.0)
+                    us = prm[0]
+            elif kind == QUADRATIC:
+                cs = (un + 2.0 * c) / 3.0
+                if cs <= 0.0:
+                    continue
+                rs = cs * cs / prm[0]
+                us = cs
+            else:
+                target = un + _h(kind, prm, r, h_rho, h_val)
+                lo = 0.0
+                hi = r
+                if target <= 0.0:
+                    continue
+                for _ in range(60):
+                    mid = 0.5 * (lo + hi)
+                    _, cm = _p_c(kind, prm, mid)
+                    g = (_h(kind, prm, mid, h_rho, h_val) if mid > 0 else 0.0) + cm - target
+                    if g > 0.0:
+                        hi = mid
+                    else:
+                        lo = mid
+                rs = 0.5 * (lo + hi)
+                _, us = _p_c(kind, prm, rs)
+            ps, _ = _p_c(kind, prm, rs)
+        m = rs * us
+        F[k, 0] = m
+        F[k, 1] = m * (us * n0 + tx) + ps * n0
+        F[k, 2] = m * (us * n1 + ty) + ps * n1
+
+
 @nb.njit(cache=True)
 def relaxation(q, ex, ey, U_f, beta, tau, rho_cut, umax, S):
     """rho (U_e(rho) e - u)/tau at k points."""
@@ -221,7 +332,8 @@ class BarotropicModel(MacroModel):
     exit_conditions = ("vacuum", "transmissive")
 
     def __init__(self, name: str, law: PressureLaw, *, U_f: float = 1.034, beta: float = 0.05,
-                 tau: float = 0.5, rho_cut: float = 1e-3, u_max: float | None = None) -> None:
+                 tau: float = 0.5, rho_cut: float = 1e-3, u_max: float | None = None,
+                 default_exit: str | None = None) -> None:
         for k, v in (("U_f", U_f), ("beta", beta), ("tau", tau), ("rho_cut", rho_cut)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
@@ -234,6 +346,14 @@ class BarotropicModel(MacroModel):
         self.U_f, self.beta, self.tau, self.rho_cut = float(U_f), float(beta), float(tau), float(rho_cut)
         #: velocity cap [m/s] at near-vacuum points (rho < 10 rho_cut; default 2.5 U_f)
         self.u_max = float(u_max) if u_max is not None else 2.5 * self.U_f
+        # exits: Rusanov against empty space (vacuum), zero gradient (transmissive), and for
+        # a model with a pressure the exact Godunov flux into empty space (godunov)
+        ex = ["vacuum", "transmissive"] + (["godunov"] if law.pressured else [])
+        if default_exit is not None:
+            ex.remove(default_exit)
+            ex.insert(0, default_exit)
+        self.exit_conditions = tuple(ex)
+        self._h_rho, self._h_val = law.h_table()
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         F = np.empty_like(qL)
@@ -254,6 +374,11 @@ class BarotropicModel(MacroModel):
         if kind == "transmissive":
             F = np.empty_like(q)
             transmissive(q, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F)
+            return F
+        if kind == "godunov":
+            F = np.empty_like(q)
+            vacuum_godunov(q, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max,
+                           self._h_rho, self._h_val, F)
             return F
         raise ParameterError(f"unknown exit condition '{kind}'")
 

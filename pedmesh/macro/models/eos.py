@@ -1,0 +1,74 @@
+"""``eos``: a Payne-Whitham-type model whose pressure is the social force model's measured
+equation of state.
+
+::
+
+    rho_t + div(rho u) = 0
+    (rho u)_t + div(rho u (x) u + p(rho) I) = rho (U_e(rho) e - u) / tau
+
+with ``p(rho)`` the virial pressure per unit mass of the SFM measured by
+``pedmesh calibrate`` (:mod:`pedmesh.calibration`) and read from a calibration file (default:
+the one shipped for the default parameters, Table 1). The default exit condition is the exact
+Godunov flux into empty space (``exit=godunov``), which is consistent with any barotropic law.
+
+The calibration holds for the SFM parameters it was measured with; when the run's SFM
+parameters (given with ``--param A=...`` etc.) differ, the model says so in
+:attr:`EquationOfStateModel.warnings` (printed by ``pedmesh run`` and kept in summary.json).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ...errors import ParameterError
+from .barotropic import BarotropicModel, PressureLaw
+from .base import register_macro_model
+
+__all__ = ["EquationOfStateModel"]
+
+#: SFM parameters a calibration depends on (tau is also the continuum's relaxation time)
+SFM_KEYS = ("A", "B", "k", "kappa", "m", "r", "tau")
+
+
+class EquationOfStateModel(BarotropicModel):
+    """Barotropic model with the calibrated SFM pressure (see module docstring)."""
+
+    def __init__(self, calibration: str | None = None, *, U_f: float = 1.034,
+                 beta: float = 0.05, tau: float = 0.5, rho_cut: float = 1e-3,
+                 u_max: float | None = None, **sfm) -> None:
+        from ...calibration import DEFAULT_EOS, load_eos
+        from ...micro.params import SocialForceParams
+
+        unknown = set(sfm) - set(SFM_KEYS)
+        if unknown:
+            raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
+        cal = load_eos(calibration)
+        fit = cal["fit"]
+        law = PressureLaw.table(fit["rho"], fit["p"], fit["dp"])
+        super().__init__("eos", law, U_f=U_f, beta=beta, tau=tau, rho_cut=rho_cut,
+                         u_max=u_max, default_exit="godunov")
+        self.calibration = str(calibration) if calibration else str(DEFAULT_EOS)
+        self.calibration_parameters = dict(cal.get("parameters", {}))
+        # the SFM this run stands for: Table 1 defaults with the overrides given
+        defaults = SocialForceParams()
+        run_sfm = {k: float(sfm.get(k, getattr(defaults, k))) for k in SFM_KEYS}
+        run_sfm["tau"] = float(tau)
+        self.sfm = run_sfm
+        self.warnings: list[str] = []
+        diff = [f"{k}={run_sfm[k]:g} (calibrated for {self.calibration_parameters[k]:g})"
+                for k in SFM_KEYS if k in self.calibration_parameters
+                and not math.isclose(run_sfm[k], float(self.calibration_parameters[k]),
+                                     rel_tol=1e-9)]
+        if diff:
+            self.warnings.append(
+                f"eos: the calibration {self.calibration} was measured for other social force "
+                f"parameters: {', '.join(diff)}; recalibrate with 'pedmesh calibrate --param "
+                "NAME=VALUE ... -o eos.json' and run with --param calibration=eos.json")
+        self.rho_range = (float(fit["rho"][0]), float(fit["rho"][-1]))
+
+    def parameters(self) -> dict:
+        return {"calibration": self.calibration, **super().parameters(),
+                **{k: v for k, v in self.sfm.items() if k != "tau"}}
+
+
+register_macro_model("eos", EquationOfStateModel)
