@@ -243,8 +243,57 @@ def results_md(results: dict, out: Path, wall: dict | None = None) -> str:
             lines.append(f"* **continuum models other than RDUE start evacuating earlier than the "
                          f"SFM** (Example 2, time to the first 1 % out; sfm {t_sfm:.1f} s; "
                          f"{', '.join(parts)}): {'confirmed' if verdict else 'NOT confirmed for every model'}.")
+    lines += eos_section(results)
     text = "\n".join(lines) + "\n"
     return text
+
+
+def eos_section(results: dict) -> list[str]:
+    """The calibrated model against the SFM (issue criteria: T50 and T90 within 3 %, mean
+    |N_out - N_sfm|/N at most 1.5 %, mass conserved), beside the other continuum models,
+    the exit conditions of eos, and the equation of state beside the mean field."""
+    from pedmesh.calibration import load_eos
+
+    lines = ["", "## The calibrated continuum model (eos) against the SFM", "",
+             "Deviation from the SFM of the same example: (T - T_sfm)/T_sfm for T50 and T90, "
+             "mean |N_out(t) - N_sfm(t)|/N for the curve; criteria for eos: 3 %, 3 %, 1.5 %.",
+             "", "| example | model | exit | dT50 | dT90 | curve distance | max mass error | meets the eos criteria |",
+             "|---|---|---|---:|---:|---:|---:|---|"]
+    verdicts = []
+    for ex, (_, _, cmp) in results.items():
+        rows = {r["label"]: r for r in cmp.rows}
+        if "sfm" not in rows:
+            continue
+        s50, s90 = rows["sfm"]["t_evac_50"], rows["sfm"]["t_evac_90"]
+        for lab, r in rows.items():
+            if lab == "sfm" or r["t_evac_50"] is None or r["t_evac_90"] is None:
+                continue
+            d50 = (r["t_evac_50"] - s50) / s50
+            d90 = (r["t_evac_90"] - s90) / s90
+            cd = r["evac_curve_distance"]
+            ok = abs(d50) <= 0.03 and abs(d90) <= 0.03 and cd <= 0.015
+            summ = cmp.runs[lab].summary
+            me = summ.get("mass_error_max")
+            if lab == "eos":
+                verdicts.append(ok)
+            lines.append(f"| {ex[-1]} | {lab} | {summ.get('exit_condition', '-')} | {100 * d50:+.1f} % | "
+                         f"{100 * d90:+.1f} % | {100 * cd:.2f} % | {_f(me, 1) if me is None else f'{me:.1e}'} | "
+                         f"{'yes' if ok else 'no'} |")
+    if verdicts:
+        lines += ["", f"**eos with the shipped calibration and the exact exit meets the criteria on "
+                      f"{sum(verdicts)} of {len(verdicts)} examples.**"]
+    cal = load_eos()
+    lines += ["", "### The measured equation of state (shipped calibration)", "",
+              "| rho [ped/m^2] | p measured [ped/s^2] | standard error | gamma1 rho^2/2 | ratio |",
+              "|---:|---:|---:|---:|---:|"]
+    for r in cal["table"]:
+        lines.append(f"| {r['rho']:g} | {r['p']:.3e} | {r['p_err']:.1e} | {r['mean_field']:.3e} | "
+                     f"{r['p'] / r['mean_field']:.2e} |")
+    lines += ["", f"gamma1 = {cal['gamma1']:.4f} m^4/s^2; measured in {cal['options']['n']}-pedestrian "
+                  f"periodic boxes, {cal['options']['replicas']} replicas, "
+                  f"{cal['options']['relax_time']:g} s relaxation + {cal['options']['sample_time']:g} s "
+                  "averaging. The flowing-crowd check is in `eos_flowing_check.md`."]
+    return lines
 
 
 def main(argv=None) -> None:

@@ -173,8 +173,8 @@ def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa):
     """Force [N] on pedestrian i from j: ``dx, dy`` = x_i - x_j at distance ``d`` > 0 and
     ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((r_ij - d)/B) and the body force
     k (r_ij - d)_+ along n_ij, and the sliding friction kappa (r_ij - d)_+ <v_j - v_i, t_ij>
-    t_ij with t_ij = (-n_y, n_x). The one definition used by the simulator and the
-    calibration."""
+    t_ij with t_ij = (-n_y, n_x). The one definition used for pairs, walls (a resting
+    partner at the contact point) and the calibration."""
     nx_ = dx / d
     ny_ = dy / d
     ov = rij - d
@@ -289,22 +289,10 @@ def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
             d2 = dx * dx + dy * dy
             if d2 >= rc2 or d2 == 0.0:
                 continue
-            d = math.sqrt(d2)
-            nx_ = dx / d
-            ny_ = dy / d
-            ov = ri - d
-            f = A * math.exp(ov * invB)
-            fx = f * nx_
-            fy = f * ny_
-            if ov > 0.0:
-                fx += k * ov * nx_
-                fy += k * ov * ny_
-                # friction against the (resting) wall: -kappa (r_i - d) <v_i, t> t
-                tx = -ny_
-                ty = nx_
-                vt = v[i, 0] * tx + v[i, 1] * ty
-                fx -= kappa * ov * vt * tx
-                fy -= kappa * ov * vt * ty
+            # the pair force with a resting partner of radius 0 at the contact point q:
+            # friction against the wall is -kappa (r_i - d) <v_i, t> t
+            fx, fy = pair_force(dx, dy, math.sqrt(d2), -v[i, 0], -v[i, 1], ri, A, invB, k,
+                                kappa)
             F[i, 0] += fx * inv_m
             F[i, 1] += fy * inv_m
 
