@@ -1,18 +1,25 @@
 """Compiled kernels of the unstructured fast-marching method (Kimmel-Sethian).
 
-Data layout (built once per mesh by :mod:`pedmesh.eikonal.fmm`):
+Data layout (built once per mesh by :mod:`pedmesh.eikonal.fmm`), all CSR by vertex and laid
+out so that accepting a vertex reads one contiguous block per list:
 
-* *dependencies*, CSR by trigger vertex: when vertex ``v`` is accepted, every row ``k`` in
-  ``dep_ptr[v]:dep_ptr[v+1]`` names a target vertex ``dep_target[k]`` whose triangle update
-  uses ``v`` and ``dep_other[k]``. The row stores the update's metric already oriented with
-  ``v`` first: ``dep_q[k] = (q_vv, q_vo, q_oo)`` is the inverse Gram matrix of the edge
-  vectors (v - C, o - C), and ``dep_tri[k]`` the triangle whose cost applies.
-* *edges*, CSR by vertex: neighbours, edge length and the (one or two) triangles beside the
-  edge, for the Dijkstra-type update along an edge.
-* *corner rays*, CSR by vertex: for exit end points and reflex boundary corners, the nearby
-  vertices visible from them and the travel cost along the straight segment. When such a
-  vertex is accepted, each gets the candidate ``T_v + cost(ray)`` (the cost of a real
-  path), which removes most of the error the expansion fans at those points create.
+* *corners*: for every triangle ``t`` around vertex ``v``, row ``s`` in
+  ``vt_ptr[v]:vt_ptr[v+1]`` of ``vt_corner`` is ``(t, A, B, D_A, D_B)``: A, B the next two
+  corners of ``t`` counter-clockwise from ``v``, and ``D_A``, ``D_B`` the vertices splitting
+  the obtuse angle at A, B (or -1: the angle is not obtuse, or its split walk failed).
+* *split targets*: the obtuse corners a vertex ``D`` splits, row ``s`` in
+  ``ds_ptr[D]:ds_ptr[D+1]`` of ``ds_corner`` being ``(t, C, A, B)``: the obtuse corner C of
+  triangle ``t`` and its next two corners A, B counter-clockwise. C is updated through the
+  virtual triangles (C, A, D) and (C, D, B).
+* *corner rays*: for exit end points and reflex boundary corners, the nearby vertices
+  ``ray_idx[k]`` visible from them (``k`` in ``ray_ptr[v]:ray_ptr[v+1]``) and the travel cost
+  ``ray_cost[k]`` along the straight segment. When such a vertex is accepted, each gets the
+  candidate ``T_v + cost(ray)`` (the cost of a real path), which removes most of the error
+  the expansion fans at those points create.
+
+Much of the march's time went into cache misses on a vertex's rows when it is accepted:
+the heap's next vertex is known one step ahead, so its corner rows are prefetched while the
+current vertex is processed, and a vertex's list pointers when it enters the heap.
 """
 
 from __future__ import annotations
@@ -21,10 +28,59 @@ import math
 
 import numba as nb
 import numpy as np
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 # heap position codes (pos[v] >= 0 is a heap slot)
 FAR = -1
 ACCEPTED = -2
+
+
+# ---------------------------------------------------------------- cache prefetch
+@intrinsic
+def _prefetch(typingctx, arr, i):
+    """Hint the CPU to load row ``i`` of ``arr`` into cache (``llvm.prefetch``: a no-op for
+    the results, never faults, so ``i`` may be out of range)."""
+    if not isinstance(arr, types.Array) or not isinstance(i, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        aryty, ity = sig.args
+        ary = context.make_array(aryty)(context, builder, args[0])
+        idx = context.cast(builder, args[1], ity, types.intp)
+        offset = builder.mul(idx, builder.extract_value(ary.strides, 0))
+        ptr = builder.gep(builder.bitcast(ary.data, cgutils.voidptr_t), [offset])
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [cgutils.voidptr_t, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0i8")
+        # read access, high temporal locality, data cache
+        builder.call(fn, [ptr, i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return types.void(arr, i), codegen
+
+
+@nb.njit(cache=True)
+def _prefetch_probe(a):
+    _prefetch(a, 1)
+    return a[0]
+
+
+def _prefetch_works() -> bool:
+    """Whether this numba/llvmlite compiles the prefetch hint (it is only a hint: without
+    it the march is the same, about 1.4x slower). Cached after the first import."""
+    try:
+        _prefetch_probe(np.zeros(2))
+        return True
+    except Exception:  # pragma: no cover - depends on the installed llvmlite
+        return False
+
+
+if not _prefetch_works():  # pragma: no cover
+    @nb.njit(inline="always")
+    def _prefetch(arr, i):  # noqa: F811 - the no-op fallback
+        pass
 
 
 # ---------------------------------------------------------------- indexed 4-ary heap
@@ -116,18 +172,14 @@ def triangle_update(cx, cy, ax, ay, bx, by, ta, tb, f):
 # ---------------------------------------------------------------- the march
 @nb.njit(cache=True)
 def march(
-    T, fixed_vertices, fixed_values, pts, tri, tsplit,
-    vt_ptr, vt_tri, vt_loc, ds_ptr, ds_tri, ds_loc,
+    T, fixed_vertices, fixed_values, pts, vt_ptr, vt_corner, ds_ptr, ds_corner,
     ray_ptr, ray_idx, ray_cost, f_tri,
 ):
     """Fast marching from the fixed (exit) vertices; fills ``T`` in place.
 
-    ``tsplit[t, i]`` is the vertex D splitting the obtuse corner ``i`` of triangle ``t``
-    (C, with A, B the next two corners counter-clockwise; the corner is then updated through
-    the virtual triangles (C, A, D) and (C, D, B)) or -1. ``vt_*`` is the vertex-to-triangle
-    adjacency with the vertex's local index, ``ds_*`` lists by vertex D the (triangle,
-    corner) pairs it splits. ``ray_cost[k]`` is the cost of corner ray ``k`` and ``f_tri``
-    the slowness per triangle [s/m]. Unreached vertices keep ``inf``.
+    ``vt_corner`` and ``ds_corner`` are the corner and split-target rows described in the
+    module docstring, ``ray_cost[k]`` the cost of corner ray ``k`` and ``f_tri`` the
+    slowness per triangle [s/m]. Unreached vertices keep ``inf``.
     """
     n = T.shape[0]
     pos = np.full(n, FAR, np.int32)
@@ -148,7 +200,8 @@ def march(
             size += 1
         fixed[v] = True
     # Every candidate for a vertex c is offered inline below (lower T[c], then insert or
-    # decrease-key): a helper function that returns the heap size is 1.5x slower in numba.
+    # decrease-key): helper functions taking arrays are 1.4-2.5x slower in numba. A vertex
+    # entering the heap gets its list pointers prefetched.
     while size > 0:
         v = hv[0]
         tv = hk[0]
@@ -156,24 +209,37 @@ def march(
         size -= 1
         if size > 0:
             _sift_down_last(hv, hk, pos, size)
+            # the likely next vertex: fetch its corner rows while v is processed
+            nxt = hv[0]
+            p0 = vt_ptr[nxt]
+            p1 = vt_ptr[nxt + 1]
+            _prefetch(vt_corner, p0)
+            _prefetch(vt_corner, (p0 + p1) >> 1)
+            _prefetch(vt_corner, p1 - 1)
         vx = pts[v, 0]
         vy = pts[v, 1]
-        # the triangles around v: update their two other corners
+        # the triangles (v, A, B) around v: update A, then B (each with the third corner o)
         for s in range(vt_ptr[v], vt_ptr[v + 1]):
-            t = vt_tri[s]
-            iv = vt_loc[s]
-            f = f_tri[t]
-            for r in range(1, 3):
-                ic = (iv + r) % 3  # target corner C
-                c = tri[t, ic]
-                if pos[c] == ACCEPTED:
+            c = vt_corner[s, 1]
+            o = vt_corner[s, 2]
+            c_acc = pos[c] == ACCEPTED
+            o_acc = pos[o] == ACCEPTED
+            if c_acc and o_acc:
+                continue
+            f = f_tri[vt_corner[s, 0]]
+            cx = pts[c, 0]
+            cy = pts[c, 1]
+            ox = pts[o, 0]
+            oy = pts[o, 1]
+            for r in range(2):
+                if r == 1:  # swap roles: B is the target, A the third corner
+                    c, o, c_acc, o_acc = o, c, o_acc, c_acc
+                    cx, cy, ox, oy = ox, oy, cx, cy
+                if c_acc:
                     continue
-                cx = pts[c, 0]
-                cy = pts[c, 1]
-                o = tri[t, (iv + 3 - r) % 3]  # the third corner
-                d = tsplit[t, ic]
-                if pos[o] == ACCEPTED and d < 0:
-                    cand = triangle_update(cx, cy, vx, vy, pts[o, 0], pts[o, 1], tv, T[o], f)
+                d = vt_corner[s, 3 + r]  # the vertex splitting the obtuse angle at C, or -1
+                if o_acc and d < 0:
+                    cand = triangle_update(cx, cy, vx, vy, ox, oy, tv, T[o], f)
                 else:
                     cand = tv + f * math.sqrt((vx - cx) ** 2 + (vy - cy) ** 2)  # edge update
                     if d >= 0 and pos[d] == ACCEPTED:  # virtual triangle (C, v, D)
@@ -184,23 +250,24 @@ def march(
                     T[c] = cand
                     pc = pos[c]
                     if pc == FAR:
+                        _prefetch(vt_ptr, c)
+                        _prefetch(ds_ptr, c)
+                        _prefetch(ray_ptr, c)
                         _sift_up(hv, hk, pos, size, c, cand)
                         size += 1
                     else:
                         _sift_up(hv, hk, pos, pc, c, cand)
-        # v as the split vertex D of obtuse corners: virtual triangles (C, A, v), (C, v, B)
+        # v as the split vertex D of obtuse corners C: virtual triangles (C, A, v), (C, v, B)
         for s in range(ds_ptr[v], ds_ptr[v + 1]):
-            t = ds_tri[s]
-            ic = ds_loc[s]
-            c = tri[t, ic]
+            c = ds_corner[s, 1]
             if pos[c] == ACCEPTED:
                 continue
             cx = pts[c, 0]
             cy = pts[c, 1]
-            f = f_tri[t]
+            f = f_tri[ds_corner[s, 0]]
             cand = np.inf
-            for r in range(1, 3):
-                o = tri[t, (ic + r) % 3]  # A, then B
+            for r in range(2, 4):
+                o = ds_corner[s, r]  # A, then B
                 if pos[o] == ACCEPTED:
                     cv = triangle_update(cx, cy, vx, vy, pts[o, 0], pts[o, 1], tv, T[o], f)
                     if cv < cand:
@@ -209,6 +276,9 @@ def march(
                 T[c] = cand
                 pc = pos[c]
                 if pc == FAR:
+                    _prefetch(vt_ptr, c)
+                    _prefetch(ds_ptr, c)
+                    _prefetch(ray_ptr, c)
                     _sift_up(hv, hk, pos, size, c, cand)
                     size += 1
                 else:
@@ -223,6 +293,9 @@ def march(
                 T[c] = cand
                 pc = pos[c]
                 if pc == FAR:
+                    _prefetch(vt_ptr, c)
+                    _prefetch(ds_ptr, c)
+                    _prefetch(ray_ptr, c)
                     _sift_up(hv, hk, pos, size, c, cand)
                     size += 1
                 else:

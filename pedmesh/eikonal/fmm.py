@@ -47,6 +47,11 @@ MAX_RAY_SAMPLES = 16
 MAX_SPLIT_STEPS = 24
 
 
+def _int32_rows(*columns: np.ndarray) -> np.ndarray:
+    """The columns side by side as one C-contiguous int32 array (one row per entry)."""
+    return np.ascontiguousarray(np.stack(columns, axis=1), dtype=np.int32)
+
+
 def _csr(keys: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     order = np.argsort(keys, kind="stable")
     ptr = np.zeros(n + 1, np.int64)
@@ -98,17 +103,21 @@ class EikonalSolver:
         self.n_obtuse = int(np.sum(split != -1))
         self.n_split_fallback = int(np.sum(split == -2))
         self.pts = np.ascontiguousarray(pts)
-        self.tri = np.ascontiguousarray(tri, dtype=np.int32)
-        self.tsplit = np.ascontiguousarray(np.where(split >= 0, split, -1), dtype=np.int32)
+        tsplit = np.where(split >= 0, split, -1)
+        # per vertex v and triangle t around it: (t, A, B, split of A, split of B), A and B
+        # the next corners counter-clockwise (the kernel's row layout, see _fmm)
         ptr, idx = mesh.vertex_triangles
         loc = np.argmax(tri[idx] == np.repeat(np.arange(n), np.diff(ptr))[:, None], axis=1)
+        ia, ib = (loc + 1) % 3, (loc + 2) % 3
         self.vt_ptr = ptr
-        self.vt_tri = np.ascontiguousarray(idx, dtype=np.int32)
-        self.vt_loc = np.ascontiguousarray(loc, dtype=np.int8)
+        self.vt_corner = _int32_rows(idx, tri[idx, ia], tri[idx, ib], tsplit[idx, ia],
+                                     tsplit[idx, ib])
+        # per split vertex D: (t, C, A, B) for the obtuse corner C it splits
         t_s, i_s = np.nonzero(split >= 0)
         self.ds_ptr, order = _csr(split[t_s, i_s], n)
-        self.ds_tri = np.ascontiguousarray(t_s[order], dtype=np.int32)
-        self.ds_loc = np.ascontiguousarray(i_s[order], dtype=np.int8)
+        t_s, i_s = t_s[order], i_s[order]
+        self.ds_corner = _int32_rows(t_s, tri[t_s, i_s], tri[t_s, (i_s + 1) % 3],
+                                     tri[t_s, (i_s + 2) % 3])
         # straight rays from singular boundary vertices, with sample triangles for the
         # line integral of the cost (midpoint rule, about two samples per local edge length)
         self.ray_ptr, self.ray_idx, self.ray_len = _corner_rays(mesh, self.corner_radius)
@@ -166,9 +175,8 @@ class EikonalSolver:
         vals = self._exit_values(exit_values)
         T = np.empty(self.mesh.n_points) if out is None else out
         _fmm.march(
-            T, self.fixed_vertices, vals, self.pts, self.tri, self.tsplit,
-            self.vt_ptr, self.vt_tri, self.vt_loc, self.ds_ptr, self.ds_tri, self.ds_loc,
-            self.ray_ptr, self.ray_idx, ray_cost, f_tri,
+            T, self.fixed_vertices, vals, self.pts, self.vt_ptr, self.vt_corner,
+            self.ds_ptr, self.ds_corner, self.ray_ptr, self.ray_idx, ray_cost, f_tri,
         )
         return T
 
