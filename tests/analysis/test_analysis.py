@@ -111,18 +111,19 @@ def test_compare_pipeline_small_room(tmp_path, capsys):
                                        spacing=0.8)])
     geo = save_room(room, tmp_path / "small.json")
     out = tmp_path / "cmp"
-    args = ["compare", str(geo), "--models", "sfm,rdue,pw:c0=0.8,mac1", "--max-area", "0.4",
+    args = ["compare", str(geo), "--models", "sfm,rdue,pw:c0=0.8,mac1,eos", "--max-area", "0.4",
             "--out", str(out), "-q"]
     assert main(args) == 0
     for name in ("evacuation.png", "outflow.png", "fundamental.png", "density.png",
                  "comparison.csv", "comparison.md"):
         assert (out / name).exists(), name
     rows = (out / "comparison.csv").read_text().splitlines()
-    assert rows[0].startswith("label,model,t_evac_50") and len(rows) == 5
-    s = {lab: json.loads((out / lab / "summary.json").read_text()) for lab in ("sfm", "rdue", "pw_c00.8", "mac1")}
+    assert rows[0].startswith("label,model,t_evac_50") and len(rows) == 6
+    s = {lab: json.loads((out / lab / "summary.json").read_text()) for lab in ("sfm", "rdue", "pw_c00.8", "mac1", "eos")}
     assert all(v["status"] == "finished" for v in s.values())
     assert s["pw_c00.8"]["parameters"]["c0"] == 0.8
+    assert s["eos"]["exit_condition"] == "godunov"
     # resumable: a second call reuses every finished run
     capsys.readouterr()
     assert main(args[:-1]) == 0
-    assert capsys.readouterr().err.count("reusing the finished run") == 4
+    assert capsys.readouterr().err.count("reusing the finished run") == 5

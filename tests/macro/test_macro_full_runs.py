@@ -47,3 +47,36 @@ def test_pw_example2(load_shipped, exit_kind):
           f"T100 {s['t_evac_100']:.1f} s, {s['steps']} steps, mass error {s['mass_error_max']:.1e}")
     assert run.done
     assert s["mass_error_max"] <= 1e-10
+
+
+@pytest.mark.parametrize("name", ["example1.json", "example2.json", "example3.json"])
+def test_eos_matches_the_social_force_model(load_shipped, name):
+    """Issue 8: eos with the shipped calibration and the exact exit is within 3 % of the SFM
+    on T50 and T90, mean |N_out - N_sfm|/N <= 1.5 %, with mass conserved."""
+    from pedmesh.analysis import curve_distance, evacuation_curve
+    from pedmesh.micro import Simulation
+    from pedmesh.run import evacuation_times
+
+    room = load_shipped(name)
+    mesh = room.mesh()
+    sim = Simulation(mesh)
+    sim.run(1000.0)
+    s50, s90, _ = evacuation_times(sim.exit_time, sim.n_initial)
+    run = MacroRun(room, mesh, {}, model="eos", model_params={"calibration"})
+    while not run.done and run.t < 600.0:
+        run.step()
+    s = run.summary()
+    t = np.asarray(run._curve_t)
+    n = np.asarray(run._curve_n)
+    ts = np.arange(0.0, sim.t + 0.05, 0.1)
+    d = curve_distance(t1=t, n1=n, t2=ts, n2=evacuation_curve(exit_times=sim.exit_time, t=ts),
+                       n_total=2400)
+    d50 = (s["t_evac_50"] - s50) / s50
+    d90 = (s["t_evac_90"] - s90) / s90
+    print(f"\neos {name}: T50 {s['t_evac_50']:.1f} (sfm {s50:.1f}, {100 * d50:+.1f} %), T90 "
+          f"{s['t_evac_90']:.1f} (sfm {s90:.1f}, {100 * d90:+.1f} %), curve distance "
+          f"{100 * d:.2f} %, mass error {s['mass_error_max']:.1e}")
+    assert s["exit_condition"] == "godunov"
+    assert s["mass_error_max"] <= 1e-10
+    assert abs(d50) <= 0.03 and abs(d90) <= 0.03
+    assert d <= 0.015
