@@ -1,6 +1,6 @@
 """Reproduce every numerical figure of Yang, Yu & Du for Examples 1-3 and check its claims.
 
-    python examples/reproduce_paper.py [--out examples/results] [--quick]
+    python examples/reproduce_paper.py [--out examples/results] [--quick] [--examples example3]
 
 For each example the models run through ``pedmesh.compare`` (finished runs are reused, so
 an interrupted reproduction resumes), then the paper's figures are drawn:
@@ -16,7 +16,9 @@ an interrupted reproduction resumes), then the paper's figures are drawn:
 and ``RESULTS.md`` tabulates T50/T90/T100 per model and example, the distance of every
 continuum model from the SFM, and states for each of the paper's claims whether these runs
 confirm it. The VTK series of every run stay in ``<out>/example*/<model>/``.
-``--quick`` runs a reduced set (for a smoke test), not the paper's figures.
+``--quick`` runs a reduced set (for a smoke test), not the paper's figures. ``--examples``
+restricts the run to some examples, e.g. to spread them over several processes (finished
+runs are shared through the results folder; a final run without it draws every figure).
 """
 
 from __future__ import annotations
@@ -300,11 +302,17 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(ROOT / "examples" / "results"))
     ap.add_argument("--quick", action="store_true", help="a reduced smoke run, not the paper set")
+    ap.add_argument("--examples", default="example1,example2,example3",
+                    help="comma-separated subset of example1,example2,example3")
     a = ap.parse_args(argv)
+    examples = tuple(e.strip() for e in a.examples.split(",") if e.strip())
+    unknown = [e for e in examples if e not in MODELS]
+    if unknown or not examples:
+        ap.error(f"unknown example(s) {unknown}; choose from {', '.join(MODELS)}")
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    results = setup(out, quick=a.quick)
+    results = setup(out, quick=a.quick, examples=examples)
     figures(results, out)
     text = results_md(results, out)
     notes = out / "DISCUSSION.md"
