@@ -55,7 +55,10 @@ def main() -> None:
         return
     room = load_room(ROOT / "geometries" / "example2.json")
     m2 = room.mesh()
-    labels = [m for m in ("sfm", "eos", "mac1") if (res / m / "summary.json").exists()]
+    def finished(path):
+        return (path / "summary.json").exists() and RunResult.load(path).finished
+
+    labels = [m for m in ("sfm", "eos", "mac1") if finished(res / m)]
     fig, axes = plt.subplots(1, len(labels), figsize=(4.2 * len(labels), 2.6), squeeze=False)
     tp = None
     for ax, lab in zip(axes[0], labels):
@@ -68,7 +71,7 @@ def main() -> None:
     plt.close(fig)
 
     runs = {p.name: RunResult.load(p) for p in sorted(res.iterdir())
-            if (p / "summary.json").exists() and not p.name.startswith("eos_exit")}
+            if finished(p) and not p.name.startswith("eos_exit")}
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     plot_evacuation(ax, {k: r.evacuation for k, r in runs.items()}, 2400)
     ax.set_title("Example 2: pedestrians out, every model", fontsize=9)

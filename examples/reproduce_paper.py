@@ -17,8 +17,10 @@ and ``RESULTS.md`` tabulates T50/T90/T100 per model and example, the distance of
 continuum model from the SFM, and states for each of the paper's claims whether these runs
 confirm it. The VTK series of every run stay in ``<out>/example*/<model>/``.
 ``--quick`` runs a reduced set (for a smoke test), not the paper's figures. ``--examples``
-restricts the run to some examples, e.g. to spread them over several processes (finished
-runs are shared through the results folder; a final run without it draws every figure).
+and ``--only`` (run labels such as ``mac1,pw_c01``) restrict the runs, with
+``--no-figures``, to spread them over several processes that must not share a run
+(finished runs are reused through the results folder; a final plain invocation draws every
+figure and writes RESULTS.md).
 """
 
 from __future__ import annotations
@@ -44,8 +46,10 @@ QUICK = {"example1": "sfm,rdue", "example2": "sfm,rdue", "example3": "sfm,rdue"}
 
 
 def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
-          examples=("example1", "example2", "example3"), max_area: float = 0.5) -> dict:
-    """Run (or reuse) every model of every example; returns {example: ComparisonResult}."""
+          examples=("example1", "example2", "example3"), max_area: float = 0.5,
+          only: set[str] | None = None) -> dict:
+    """Run (or reuse) every model of every example (or only the run labels in ``only``);
+    returns {example: ComparisonResult}."""
     from pedmesh import load_room
     from pedmesh.compare import parse_model_specs, run_comparison
     from pedmesh.run import MODELS as REGISTERED
@@ -55,7 +59,10 @@ def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
     for ex in examples:
         models = (QUICK if quick else MODELS)[ex]
         specs = [s for s in parse_model_specs(
-            ",".join(m for m in models.split(",") if m.split(":")[0] in REGISTERED))]
+            ",".join(m for m in models.split(",") if m.split(":")[0] in REGISTERED))
+            if only is None or s.label in only]
+        if not specs:
+            continue
         room = load_room(ROOT / "geometries" / f"{ex}.json")
         mesh = room.mesh(max_area=max_area)
         t0 = time.perf_counter()
@@ -177,6 +184,41 @@ def _first_out(r, fraction=0.01):
     return float(t[idx[0]]) if len(idx) else None
 
 
+def extent_section(results: dict, times=(20.0, 40.0, 60.0)) -> list[str]:
+    """Where the crowd is: the rear and front of the mass along x (every example walks in
+    +x; 1st and 99th percentiles of the cell masses) and the peak cell density, per model.
+    Shows how far each continuum crowd spreads compared with the SFM's."""
+    lines = ["", "## How the crowds spread", "",
+             "Rear / front of the crowd along x [m] (1st / 99th percentile of the mass) and "
+             "the peak cell density [ped/m^2] at the times shown; the block starts at "
+             "0-48 m. SFM densities are the kernel densities (R = 0.7 m) on the cells.", ""]
+    from pedmesh.errors import PedmeshError
+
+    head = " | ".join(f"t = {t:g} s" for t in times)
+    lines += [f"| example | model | {head} |", "|---|---|" + "---|" * len(times)]
+    for ex, (_, mesh, cmp) in results.items():
+        x = mesh.centroids[:, 0]
+        order = np.argsort(x)
+        for lab, r in cmp.runs.items():
+            cells = []
+            for t in times:
+                try:
+                    ft, rho, _ = r.density_at(t, mesh)
+                except PedmeshError:  # a run without density frames
+                    cells.append("-")
+                    continue
+                m = (rho * mesh.areas)[order]
+                if m.sum() <= 0:
+                    cells.append("empty")
+                    continue
+                cm = np.cumsum(m) / m.sum()
+                rear = x[order][min(np.searchsorted(cm, 0.01), len(x) - 1)]
+                front = x[order][min(np.searchsorted(cm, 0.99), len(x) - 1)]
+                cells.append(f"{rear:.1f} / {front:.1f} ({rho.max():.2f})")
+            lines.append(f"| {ex[-1]} | {lab} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def _f(v, d=1):
     return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{d}f}"
 
@@ -245,6 +287,7 @@ def results_md(results: dict, out: Path, wall: dict | None = None) -> str:
             lines.append(f"* **continuum models other than RDUE start evacuating earlier than the "
                          f"SFM** (Example 2, time to the first 1 % out; sfm {t_sfm:.1f} s; "
                          f"{', '.join(parts)}): {'confirmed' if verdict else 'NOT confirmed for every model'}.")
+    lines += extent_section(results)
     lines += eos_section(results)
     text = "\n".join(lines) + "\n"
     return text
@@ -304,6 +347,8 @@ def main(argv=None) -> None:
     ap.add_argument("--quick", action="store_true", help="a reduced smoke run, not the paper set")
     ap.add_argument("--examples", default="example1,example2,example3",
                     help="comma-separated subset of example1,example2,example3")
+    ap.add_argument("--only", default=None, help="comma-separated run labels (e.g. mac1,pw_c01)")
+    ap.add_argument("--no-figures", action="store_true", help="only run the models")
     a = ap.parse_args(argv)
     examples = tuple(e.strip() for e in a.examples.split(",") if e.strip())
     unknown = [e for e in examples if e not in MODELS]
@@ -312,7 +357,11 @@ def main(argv=None) -> None:
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    results = setup(out, quick=a.quick, examples=examples)
+    only = None if a.only is None else {x.strip() for x in a.only.split(",") if x.strip()}
+    results = setup(out, quick=a.quick, examples=examples, only=only)
+    if a.no_figures:
+        print(f"runs done in {time.perf_counter() - t0:.0f} s (no figures)", file=sys.stderr)
+        return
     figures(results, out)
     text = results_md(results, out)
     notes = out / "DISCUSSION.md"
