@@ -67,7 +67,7 @@ def main() -> None:
         ax.set_title(f"{lab}, t = {t:.0f} s", fontsize=9)
         ax.tick_params(labelsize=7)
     fig.colorbar(tp, ax=axes, shrink=0.85, label="density [ped/m^2]")
-    fig.savefig(OUT / "density.png", dpi=100)
+    fig.savefig(OUT / "density.png", dpi=100, bbox_inches="tight")
     plt.close(fig)
 
     runs = {p.name: RunResult.load(p) for p in sorted(res.iterdir())
