@@ -37,9 +37,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 MODELS = {
     "example1": "sfm,mac1,rdue,pw:c0=1,mac2-local,eos",
-    "example2": ("sfm,mac1,rdue,pw:c0=0.5,pw:c0=1,pw:c0=2,mac2-local,eos,eos:exit=vacuum,"
-                 "eos:exit=transmissive"),
-    "example3": "sfm,mac1,rdue,pw:c0=1,mac2-local,eos",
+    # eos with the transmissive exit is left out: on Example 2 its outflow stalls (a jam of
+    # about 9.7 ped/m^2 at the door, 592 of 2400 out at t = 202 s); see DISCUSSION.md
+    "example2": "sfm,mac1,rdue,pw:c0=0.5,pw:c0=1,pw:c0=2,mac2-local,eos,eos:exit=vacuum",
+    "example3": "sfm,mac1,rdue,mac2-local,eos",
 }
 DENSITY_TIMES = {"example1": [30, 50, 70], "example2": [30, 50, 70, 90], "example3": [30, 50, 80, 100]}
 QUICK = {"example1": "sfm,rdue", "example2": "sfm,rdue", "example3": "sfm,rdue"}
