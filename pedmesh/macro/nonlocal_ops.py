@@ -103,6 +103,19 @@ def _seg_dist(ax, ay, bx, by, cx, cy, dx, dy):
     return best, bs, bt
 
 
+@nb.njit(cache=True, inline="always")
+def _gauss_piece(lo, hi, L, gl_x, gl_w, nodes, weights, n):
+    """Append the Gauss-Legendre nodes of the piece [lo, hi] of [0, 1] (edge length L)
+    at position n; returns the new count."""
+    mid = 0.5 * (lo + hi)
+    half = 0.5 * (hi - lo)
+    for g in range(gl_x.shape[0]):
+        nodes[n] = mid + half * gl_x[g]
+        weights[n] = half * gl_w[g] * L
+        n += 1
+    return n
+
+
 @nb.njit(cache=True)
 def _graded_nodes(L, s0, d, h0, gl_x, gl_w, nodes, weights):
     """Gauss-Legendre nodes on [0, 1] (edge of length L) on pieces graded towards the
@@ -120,12 +133,7 @@ def _graded_nodes(L, s0, d, h0, gl_x, gl_w, nodes, weights):
                 b = max(a - length / L, 0.0)
                 lo, hi = b, a
             if hi > lo:
-                mid = 0.5 * (lo + hi)
-                half = 0.5 * (hi - lo)
-                for g in range(gl_x.shape[0]):
-                    nodes[n] = mid + half * gl_x[g]
-                    weights[n] = half * gl_w[g] * L
-                    n += 1
+                n = _gauss_piece(lo, hi, L, gl_x, gl_w, nodes, weights, n)
             if (side == 0 and b >= 1.0) or (side == 1 and b <= 0.0):
                 break
             a = b
@@ -139,14 +147,7 @@ def _uniform_nodes(L, piece, gl_x, gl_w, nodes, weights):
     k = max(1, min(int(math.ceil(L / piece)), nodes.shape[0] // gl_x.shape[0]))
     n = 0
     for j in range(k):
-        lo = j / k
-        hi = (j + 1) / k
-        mid = 0.5 * (lo + hi)
-        half = 0.5 * (hi - lo)
-        for g in range(gl_x.shape[0]):
-            nodes[n] = mid + half * gl_x[g]
-            weights[n] = half * gl_w[g] * L
-            n += 1
+        n = _gauss_piece(j / k, (j + 1) / k, L, gl_x, gl_w, nodes, weights, n)
     return n
 
 
