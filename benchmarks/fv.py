@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _common import run_to_end
+
 from pedmesh import Exit, Room, load_room
 from pedmesh.macro.models import macro_model
 from pedmesh.macro.run import MacroRun
@@ -65,13 +67,7 @@ def example2_runs():
             cases.append(("pw", {"c0": c0, "exit": kind}, kind))
     for name, over, kind in cases:
         run = MacroRun(room, mesh, over, model=name, model_params=PARAMS[name])
-        t0 = time.perf_counter()
-        t99 = None
-        while not run.done and run.t < 900.0:
-            run.step()
-            if t99 is None and run.evacuated >= 0.99 * run.n_initial:
-                t99 = time.perf_counter() - t0
-        wall = time.perf_counter() - t0
+        wall, t99 = run_to_end(run)
         s = run.summary()
         label = name + (f" c0={over['c0']:g}" if "c0" in over else "")
         out.append((label, kind, wall, t99, s))

@@ -18,6 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
+from _common import run_to_end
+
 from pedmesh import load_room
 from pedmesh.macro.kernels import SFMFriction, SFMRepulsion
 from pedmesh.macro.nonlocal_ops import build_pair_operators
@@ -54,13 +56,8 @@ def step_costs(room, mesh, models):
 
 def full_run(room, mesh, name, overrides):
     run = MODELS[name](room, mesh, overrides)
-    t0 = time.perf_counter()
-    t99 = None
-    while not run.done and run.t < 900.0:
-        run.step()
-        if t99 is None and run.evacuated >= 0.99 * run.n_initial:
-            t99 = time.perf_counter() - t0
-    return run.summary(), time.perf_counter() - t0, t99
+    wall, t99 = run_to_end(run)
+    return run.summary(), wall, t99
 
 
 def main(skip_runs: bool = False) -> None:
