@@ -78,8 +78,8 @@ def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
 
 # ------------------------------------------------------------------ figures
 def figures(results: dict, out: Path) -> None:
-    from pedmesh.analysis import density_flow_diagram, reference_flow
-    from pedmesh.compare import _fd_samples, _outflow_total
+    from pedmesh.analysis import reference_flow
+    from pedmesh.compare import _outflow_total
     from pedmesh.plotting import _plt, plot_crowd, plot_density, plot_fundamental
 
     plt = _plt()
@@ -164,13 +164,7 @@ def figures(results: dict, out: Path) -> None:
     fig, axes = plt.subplots(1, len(exs), figsize=(5 * len(exs), 3.6), squeeze=False)
     rr = np.linspace(0, 10.5, 200)
     for ax, ex in zip(axes[0], exs):
-        _, mesh, cmp = results[ex]
-        diagrams = {}
-        for lab, r in cmp.runs.items():
-            d, f = _fd_samples(r, mesh)
-            if len(d):
-                diagrams[lab] = density_flow_diagram(density=d, flow=f)
-        plot_fundamental(ax, diagrams, (rr, reference_flow(density=rr)))
+        plot_fundamental(ax, results[ex][2].diagrams, (rr, reference_flow(density=rr)))
         ax.set_title(ex.replace("example", "Example "))
     fig.tight_layout()
     fig.savefig(out / "fig_f9_fundamental.png", dpi=110)

@@ -78,11 +78,13 @@ def _reusable(res: RunResult, spec: ModelSpec, geometry: str, mesh_options: dict
 
 @dataclass
 class ComparisonResult:
-    """Runs of a comparison and the table rows written to comparison.csv."""
+    """Runs of a comparison, the table rows written to comparison.csv and the binned
+    density-flow diagrams (by run label; empty without plots)."""
 
     runs: dict
     rows: list
     out_dir: Path
+    diagrams: dict = field(default_factory=dict)
 
 
 def _outflow_total(res: RunResult, kernel: bool = False):
@@ -150,6 +152,13 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
     if density_times is None:
         t90 = ref.summary.get("t_evac_90") or float(ref.evacuation[0][-1])
         density_times = [round(f * t90) for f in (0.25, 0.5, 0.75)]
+    ref_flow = _outflow_total(ref)
+    ref_rho = {}
+    for tt in density_times:
+        try:
+            ref_rho[tt] = ref.density_at(tt, mesh)[1]
+        except Exception:  # a run that ended before tt has no frame there
+            ref_rho[tt] = None
     rows = []
     for lab in labels:
         res = runs[lab]
@@ -165,7 +174,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
         row["evac_curve_distance"] = curve_distance(t1=t, n1=n, t2=rt, n2=rn, n_total=n0)
         row["dT90_s"] = (None if s.get("t_evac_90") is None or ref.summary.get("t_evac_90") is None
                          else s["t_evac_90"] - ref.summary["t_evac_90"])
-        fo, fr = _outflow_total(res), _outflow_total(ref)
+        fo, fr = _outflow_total(res), ref_flow
         if fo is not None and fr is not None:
             end = min(fo[0][-1], fr[0][-1])
             g = np.arange(0.0, end, 0.5)
@@ -173,17 +182,17 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
             b = np.interp(g, *fr)
             row["outflow_distance"] = float(np.mean(np.abs(a - b)) / max(np.mean(np.abs(b)), 1e-12))
         for tt in density_times:
+            r0 = ref_rho[tt]
             try:
                 _, r1, _ = res.density_at(tt, mesh)
-                _, r0, _ = ref.density_at(tt, mesh)
-                row[f"density_L1_t{tt:g}"] = density_l1(mesh=mesh, rho1=r1, rho2=r0) / n0
             except Exception:  # a run that ended before tt has no frame there
-                row[f"density_L1_t{tt:g}"] = None
+                r1 = None
+            row[f"density_L1_t{tt:g}"] = (None if r0 is None or r1 is None else
+                                          density_l1(mesh=mesh, rho1=r1, rho2=r0) / n0)
         rows.append(row)
     _write_tables(out, rows, labels[0])
-    if plots:
-        _plots(out, room, mesh, runs, n0, density_times)
-    return ComparisonResult(runs, rows, out)
+    diagrams = _plots(out, room, mesh, runs, n0, density_times) if plots else {}
+    return ComparisonResult(runs, rows, out, diagrams)
 
 
 def _fmt(v, digits=2):
@@ -210,7 +219,8 @@ def _write_tables(out: Path, rows: list[dict], ref: str) -> None:
     (out / "comparison.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
-def _plots(out, room, mesh, runs, n0, density_times) -> None:
+def _plots(out, room, mesh, runs, n0, density_times) -> dict:
+    """Write the comparison plots; returns the binned density-flow diagrams by label."""
     from .plotting import _plt, plot_density, plot_evacuation, plot_fundamental, plot_outflow
 
     plt = _plt()
@@ -259,3 +269,4 @@ def _plots(out, room, mesh, runs, n0, density_times) -> None:
         fig.colorbar(tp, ax=axes, shrink=0.8, label="density [ped/m^2]")
     fig.savefig(out / "density.png", dpi=120)
     plt.close(fig)
+    return diagrams
