@@ -46,25 +46,20 @@ def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
 
 # ------------------------------------------------------------------ pair forces + density
 @nb.njit(cache=True)
-def pair_accel(x, v, n, cell_start, cell_order, nx, ny, rc_f, rc_d, rij, A, B, k, kappa, m, R,
-               F, rho):
-    """Pair accelerations (into ``F``, zeroed first) and Gaussian kernel densities.
+def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj):
+    """All pairs closer than ``rc``, each once (i from the lower cell), split in two groups:
+    the *near* pairs (closer than ``rc_near``) fill ``pi``/``pj`` from the front, the *far*
+    ones from the back. Returns ``(n_near, n_far)``, or ``(-1, -1)`` if ``pi``/``pj`` are
+    too small.
 
-    ``rho[i] = sum_j w(|x_i - x_j|)`` over all j including i itself (paper eq3, eq4),
-    truncated at ``rc_d``; the pair force (social repulsion, body force and sliding
-    friction, divided by m) is truncated at ``rc_f``. Each pair is visited once: cell
-    ``c`` with itself (pairs a < b) and with four of its eight neighbours.
+    The pair forces only act within the near group (``rc_near`` = force cut-off + skin), so
+    the far group, typically two thirds of the list, needs the density kernel alone.
     """
-    w0 = 1.0 / (math.pi * R * R)
-    invR2 = 1.0 / (R * R)
-    invB = 1.0 / B
-    inv_m = 1.0 / m
-    rc_f2 = rc_f * rc_f
-    rc_d2 = rc_d * rc_d
-    for i in range(n):
-        F[i, 0] = 0.0
-        F[i, 1] = 0.0
-        rho[i] = w0
+    rc2 = rc * rc
+    rn2 = rc_near * rc_near
+    cap = pi.shape[0]
+    m_near = 0
+    m_far = 0
     for ci in range(nx):
         for cj in range(ny):
             c = ci * ny + cj
@@ -73,7 +68,7 @@ def pair_accel(x, v, n, cell_start, cell_order, nx, ny, rc_f, rc_d, rij, A, B, k
             if s0 == s1:
                 continue
             for q in range(5):
-                # q = 0: the cell itself; then (+1,-1), (+1,0), (+1,+1), (0,+1)
+                # q = 0: the cell itself (pairs a < b); then (+1,-1), (+1,0), (+1,+1), (0,+1)
                 if q == 0:
                     ni = ci
                     nj = cj
@@ -91,81 +86,24 @@ def pair_accel(x, v, n, cell_start, cell_order, nx, ny, rc_f, rc_d, rij, A, B, k
                     i = cell_order[a]
                     xi = x[i, 0]
                     yi = x[i, 1]
-                    vxi = v[i, 0]
-                    vyi = v[i, 1]
-                    fxi = 0.0
-                    fyi = 0.0
-                    rhoi = 0.0
                     t0 = a + 1 if q == 0 else cell_start[c2]
                     for b in range(t0, t1):
                         j = cell_order[b]
                         dx = xi - x[j, 0]
                         dy = yi - x[j, 1]
                         d2 = dx * dx + dy * dy
-                        if d2 >= rc_d2 and d2 >= rc_f2:
-                            continue
-                        if d2 < rc_d2:
-                            w = w0 * math.exp(-d2 * invR2)
-                            rhoi += w
-                            rho[j] += w
-                        if d2 < rc_f2 and d2 > 0.0:
-                            fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - vxi,
-                                                v[j, 1] - vyi, rij, A, invB, k, kappa)
-                            fx *= inv_m
-                            fy *= inv_m
-                            fxi += fx
-                            fyi += fy
-                            F[j, 0] -= fx
-                            F[j, 1] -= fy
-                    F[i, 0] += fxi
-                    F[i, 1] += fyi
-                    rho[i] += rhoi
-
-
-@nb.njit(cache=True)
-def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, pi, pj):
-    """All pairs closer than ``rc`` (each once, i from the lower cell); returns their
-    number, or -1 if ``pi``/``pj`` are too small."""
-    rc2 = rc * rc
-    cap = pi.shape[0]
-    m = 0
-    for ci in range(nx):
-        for cj in range(ny):
-            c = ci * ny + cj
-            s0 = cell_start[c]
-            s1 = cell_start[c + 1]
-            if s0 == s1:
-                continue
-            for q in range(5):
-                if q == 0:
-                    ni = ci
-                    nj = cj
-                elif q < 4:
-                    ni = ci + 1
-                    nj = cj + q - 2
-                else:
-                    ni = ci
-                    nj = cj + 1
-                if ni >= nx or nj < 0 or nj >= ny:
-                    continue
-                c2 = ni * ny + nj
-                t1 = cell_start[c2 + 1]
-                for a in range(s0, s1):
-                    i = cell_order[a]
-                    xi = x[i, 0]
-                    yi = x[i, 1]
-                    t0 = a + 1 if q == 0 else cell_start[c2]
-                    for b in range(t0, t1):
-                        j = cell_order[b]
-                        dx = xi - x[j, 0]
-                        dy = yi - x[j, 1]
-                        if dx * dx + dy * dy < rc2:
-                            if m >= cap:
-                                return -1
-                            pi[m] = i
-                            pj[m] = j
-                            m += 1
-    return m
+                        if d2 < rc2:
+                            if m_near + m_far >= cap:
+                                return -1, -1
+                            if d2 < rn2:
+                                pi[m_near] = i
+                                pj[m_near] = j
+                                m_near += 1
+                            else:
+                                m_far += 1
+                                pi[cap - m_far] = i
+                                pj[cap - m_far] = j
+    return m_near, m_far
 
 
 @nb.njit(cache=True, inline="always")
@@ -193,8 +131,19 @@ def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa):
 
 
 @nb.njit(cache=True)
-def pair_accel_list(x, v, n, pi, pj, npairs, rc_f, rc_d, rij, A, B, k, kappa, m, R, F, rho):
-    """As :func:`pair_accel`, over a precomputed pair list (a superset of the pairs in range)."""
+def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rij, A, B, k, kappa, m, R, F,
+                    rho, with_density=True):
+    """Pair accelerations (into ``F``, zeroed first) and Gaussian kernel densities over a
+    pair list from :func:`build_pairs` (a superset of the pairs in range).
+
+    ``rho[i] = sum_j w(|x_i - x_j|)`` over all j including i itself (paper eq3, eq4),
+    truncated at ``rc_d``; the pair force (social repulsion, body force and sliding
+    friction, divided by m) is truncated at ``rc_f`` and must vanish for every far pair
+    (``build_pairs`` guarantees it when its ``rc_near`` covers ``rc_f`` plus the motion
+    since the list was built). Each pair's force is added to one pedestrian and subtracted
+    from the other, so Newton's third law holds to round-off. With ``with_density`` false,
+    ``rho`` is left as it is and only the near pairs are visited.
+    """
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
     invB = 1.0 / B
@@ -204,14 +153,16 @@ def pair_accel_list(x, v, n, pi, pj, npairs, rc_f, rc_d, rij, A, B, k, kappa, m,
     for i in range(n):
         F[i, 0] = 0.0
         F[i, 1] = 0.0
-        rho[i] = w0
-    for p in range(npairs):
+    if with_density:
+        for i in range(n):
+            rho[i] = w0
+    for p in range(n_near):
         i = pi[p]
         j = pj[p]
         dx = x[i, 0] - x[j, 0]
         dy = x[i, 1] - x[j, 1]
         d2 = dx * dx + dy * dy
-        if d2 < rc_d2:
+        if with_density and d2 < rc_d2:
             w = w0 * math.exp(-d2 * invR2)
             rho[i] += w
             rho[j] += w
@@ -224,6 +175,19 @@ def pair_accel_list(x, v, n, pi, pj, npairs, rc_f, rc_d, rij, A, B, k, kappa, m,
             F[i, 1] += fy
             F[j, 0] -= fx
             F[j, 1] -= fy
+    if not with_density:
+        return
+    cap = pi.shape[0]
+    for p in range(cap - n_far, cap):  # density only
+        i = pi[p]
+        j = pj[p]
+        dx = x[i, 0] - x[j, 0]
+        dy = x[i, 1] - x[j, 1]
+        d2 = dx * dx + dy * dy
+        if d2 < rc_d2:
+            w = w0 * math.exp(-d2 * invR2)
+            rho[i] += w
+            rho[j] += w
 
 
 # ------------------------------------------------------------------ walls
@@ -363,14 +327,15 @@ def follow(points, triangles, nbr, tri, x, n):
 
 # ------------------------------------------------------------------ one SSP-RK3 step
 @nb.njit(cache=True)
-def accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs,
+def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, beta,
-          const_u, use_const, F, rho, e):
+          const_u, use_const, F, rho, e, with_density):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
-    desired-velocity term."""
-    pair_accel_list(x, v, n, pi, pj, npairs, rc_f, rc_d, 2.0 * r, A, B, k, kappa, m, R, F,
-                    rho)
+    desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
+    else as they are)."""
+    pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, 2.0 * r, A, B, k, kappa, m,
+                    R, F, rho, with_density)
     wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
                rc_w, r, A, B, k, kappa, m, F)
     inv_tau = 1.0 / tau
@@ -380,7 +345,7 @@ def accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj
             F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
         return
     follow(points, triangles, nbr, tri, x, n)
-    _interpolate(x[:n], tri[:n], triangles, points, vdir, tdir, wall_n, e, jamb)
+    _interpolate(dpack, tri[:n], x[:n], e)
     for i in range(n):
         ue = U_f * math.exp(-beta * rho[i])
         F[i, 0] += (ue * e[i, 0] - v[i, 0]) * inv_tau
@@ -469,13 +434,14 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
 
 
 @nb.njit(cache=True)
-def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb,
+def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, beta,
-             const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin):
+             const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
-    ``rho_out`` receives the kernel densities at the start of the step.
+    ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
+    three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
 
     The pairs closer than the largest cut-off plus ``skin`` are listed once per step from a
     cell list and reused by the three stages (the list is rebuilt for a stage in the rare
@@ -484,59 +450,66 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb,
     """
     rc_list = max(rc_f, rc_d) + skin
     build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
-    npairs = build_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, pi, pj)
-    if npairs < 0:
+    n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,
+                                pi, pj)
+    if n_near < 0:
         return -1
     # stage 1: u1 = u + dt L(u)
-    accel(x, v, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs, piece,
+    accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e)
+          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, True)
     for i in range(n):
         rho_out[i] = rho[i]
         for d in range(2):
             xs[i, d] = x[i, d] + dt * v[i, d]
             vs[i, d] = v[i, d] + dt * F[i, d]
     # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
-    npairs = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
-                            rc_list, pi, pj, npairs)
-    if npairs < 0:
+    n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
+                                            cinv, cnx, cny, rc_f, rc_d, pi, pj, n_near, n_far,
+                                            False)
+    if n_near < 0:
         return -1
-    accel(xs, vs, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs, piece,
+    accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e)
+          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, density_stages == 3)
     for i in range(n):
         for d in range(2):
             x1 = xs[i, d]
             v1 = vs[i, d]
             xs[i, d] = 0.75 * x[i, d] + 0.25 * (x1 + dt * v1)
             vs[i, d] = 0.75 * v[i, d] + 0.25 * (v1 + dt * F[i, d])
-    # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2))
-    npairs = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
-                            rc_list, pi, pj, npairs)
-    if npairs < 0:
+    # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2)); a list rebuilt for stage 2 has no skin
+    n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
+                                            cinv, cnx, cny, rc_f, rc_d, pi, pj, n_near, n_far,
+                                            rebuilt)
+    if n_near < 0:
         return -1
-    accel(xs, vs, n, tri, points, triangles, nbr, vdir, tdir, wall_n, jamb, pi, pj, npairs, piece,
+    accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e)
+          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, density_stages == 3)
     for i in range(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])
             v[i, d] = v[i, d] / 3.0 + 2.0 / 3.0 * (vs[i, d] + dt * F[i, d])
-    return npairs
+    return n_near + n_far
 
 
 @nb.njit(cache=True)
-def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_list,
-                   pi, pj, npairs):
-    """Keep the pair list if nobody moved more than skin/2 since it was built, else rebuild."""
+def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d,
+                   pi, pj, n_near, n_far, force):
+    """Keep the pair list (built with skin at ``x0``) if nobody moved more than skin/2 since,
+    else (or if ``force``) rebuild it for the positions ``x`` without skin, valid for this
+    stage only. Returns ``(n_near, n_far, rebuilt)``."""
     lim = 0.25 * skin * skin
     for i in range(n):
         dx = x[i, 0] - x0[i, 0]
         dy = x[i, 1] - x0[i, 1]
-        if dx * dx + dy * dy > lim:
+        if force or dx * dx + dy * dy > lim:
             build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
-            return build_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list - skin, pi, pj)
-    return npairs
+            n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny,
+                                        max(rc_f, rc_d), rc_f, pi, pj)
+            return n_near, n_far, True
+    return n_near, n_far, False
 
 
 @nb.njit(cache=True)

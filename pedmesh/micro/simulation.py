@@ -162,12 +162,11 @@ class Simulation:
         else:
             self._const_u = np.zeros(2)
             self._use_const = False
-        from ..eikonal.direction import _jamb_overrides, _wall_normals
+        from ..eikonal.direction import pack_directions
 
-        self._wall_n = _wall_normals(mesh)
-        self._jamb = _jamb_overrides(mesh)
-        self._vdir = np.zeros((mesh.n_points, 2))
-        self._tdir = np.zeros((mesh.n_triangles, 2))
+        # packed per-triangle steering table of the current route field (zero: no route yet)
+        self._dpack = pack_directions(mesh, np.zeros((mesh.n_points, 2)),
+                                      np.zeros((mesh.n_triangles, 2)))
         self.phi = np.zeros(mesh.n_points)
         self._next_route = 0.0
         if not self._use_const:
@@ -225,8 +224,7 @@ class Simulation:
             cost = 1.0 / self.params.desired_speed(rho_v)
             self.phi = self._solver.solve(cost)
             field_ = DirectionField(self.mesh, self.phi)
-            self._vdir = field_.vertex_directions
-            self._tdir = field_.triangle_directions
+            self._dpack = field_.packed
             self.timers.routes += 1
         ri = self.numerics.route_interval
         self._next_route = self.t + ri if ri > 0 else self.t
@@ -239,13 +237,13 @@ class Simulation:
         p, mesh, w = self.params, self.mesh, self.walls
         return K.rk3_step(
             self.x, self.v, n, dt, tri_stage, mesh.points, mesh.triangles,
-            mesh.triangle_neighbors, self._vdir, self._tdir, self._wall_n, self._jamb,
+            mesh.triangle_neighbors, self._dpack,
             self._cell_start, self._cell_order, self._cx0, self._cy0, self._cinv,
             self._cnx, self._cny, w.piece, w.next_seg, w.x0, w.y0,
             w.inv_cell, w.nx, w.ny, w.cell_ptr, w.cell_seg, self.rc_f, self.rc_d, self.rc_w,
             p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, p.U_f, p.beta, self._const_u,
             self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho, self._e,
-            self._pi, self._pj, PAIR_SKIN,
+            self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
         )
 
     def step(self) -> int:
@@ -344,6 +342,5 @@ class Simulation:
             c = self._const_u / max(np.hypot(*self._const_u), 1e-300)
             out[:] = c
             return out
-        _interpolate(self.x[: self.n], self.tri[: self.n], self.mesh.triangles, self.mesh.points,
-                     self._vdir, self._tdir, self._wall_n, out, self._jamb)
+        _interpolate(self._dpack, self.tri[: self.n], self.x[: self.n], out)
         return out

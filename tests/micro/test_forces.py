@@ -39,30 +39,42 @@ def direct_pairs(x, v, rc_f, rc_d, p=P):
     return F, rho
 
 
-def kernel_pairs(x, v, rc_f, rc_d, p=P):
+def kernel_pairs(x, v, rc_f, rc_d, p=P, skin=0.0, x_list=None):
+    """The production path: a pair list built (with ``skin``) at ``x_list`` (default ``x``),
+    then the forces and densities at ``x``."""
+    x_list = x if x_list is None else x_list
     n = len(x)
-    cell = max(rc_f, rc_d)
-    lo = x.min(axis=0) - cell
-    hi = x.max(axis=0) + cell
+    cell = max(rc_f, rc_d) + skin
+    lo = np.minimum(x.min(axis=0), x_list.min(axis=0)) - cell
+    hi = np.maximum(x.max(axis=0), x_list.max(axis=0)) + cell
     nx = int((hi[0] - lo[0]) / cell) + 1
     ny = int((hi[1] - lo[1]) / cell) + 1
     start = np.zeros(nx * ny + 1, np.int64)
     order = np.zeros(n, np.int64)
-    K.build_cells(x, n, lo[0], lo[1], 1.0 / cell, nx, ny, start, order)
+    K.build_cells(x_list, n, lo[0], lo[1], 1.0 / cell, nx, ny, start, order)
+    pi = np.empty(n * n, np.int64)
+    pj = np.empty(n * n, np.int64)
+    n_near, n_far = K.build_pairs(x_list, n, start, order, nx, ny, max(rc_f, rc_d) + skin,
+                                  rc_f + skin, pi, pj)
+    assert n_near > 0 and n_far > 0
     F = np.zeros((n, 2))
     rho = np.zeros(n)
-    K.pair_accel(x, v, n, start, order, nx, ny, rc_f, rc_d, 2 * p.r, p.A, p.B, p.k, p.kappa,
-                 p.m, p.R, F, rho)
+    K.pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, 2 * p.r, p.A, p.B, p.k,
+                      p.kappa, p.m, p.R, F, rho)
     return F, rho
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_pair_forces_match_direct_formula(seed):
+@pytest.mark.parametrize("skin", [0.0, 0.2])
+def test_pair_forces_match_direct_formula(seed, skin):
     rng = np.random.default_rng(seed)
     n = 300
     x = rng.uniform(0, 8, (n, 2))  # about 4.7 ped/m^2: many bodies in contact
     v = rng.normal(0, 1, (n, 2))
-    F, rho = kernel_pairs(x, v, 1.2, 2.1)
+    # with a skin the list is built where everyone was before moving up to skin/2
+    step = rng.normal(0, 1, (n, 2))
+    step *= 0.4999 * skin / np.maximum(np.hypot(step[:, 0], step[:, 1]), 1e-12)[:, None]
+    F, rho = kernel_pairs(x, v, 1.2, 2.1, skin=skin, x_list=x - step)
     Fd, rhod = direct_pairs(x, v, 1.2, 2.1)
     assert np.abs(F - Fd).max() <= 1e-12 * np.abs(Fd).max()
     np.testing.assert_allclose(rho, rhod, rtol=1e-13)

@@ -100,6 +100,28 @@ def test_identical_runs_identical_outputs(geometries_dir, load_shipped, tmp_path
         np.testing.assert_array_equal(ma.point_data["velocity"], mb.point_data["velocity"])
 
 
+@pytest.mark.parametrize("stages", [1, 3])
+def test_step_densities_are_the_kernel_density_at_the_step_start(load_shipped, stages):
+    """The densities a step reports (and, with density_stages=1, uses for U_e in all three
+    stages) come from the per-step pair list; they equal the kernel density evaluated
+    directly at the positions the step started from."""
+    room = load_shipped("example2.json")
+    sim = Simulation(room.mesh(), numerics=SFMNumerics(density_stages=stages))
+    for _ in range(30):
+        x0 = sim.positions
+        sim.step()
+    assert sim.n == sim.n_initial
+    from scipy.spatial import cKDTree
+
+    R = sim.params.R
+    D = cKDTree(x0).sparse_distance_matrix(cKDTree(x0), sim.rc_d, output_type="coo_matrix")
+    w = np.exp(-(D.data / R) ** 2) / (math.pi * R * R)
+    w[D.row == D.col] = 0.0  # the pedestrian itself is added below (distance 0 is not stored)
+    direct = np.bincount(D.row, weights=w, minlength=len(x0)) + 1.0 / (math.pi * R * R)
+    np.testing.assert_allclose(sim.densities, direct, rtol=1e-12)
+    assert direct.max() > 1.5 / (math.pi * R * R)  # a crowd, not isolated pedestrians
+
+
 def test_start_outside_or_in_obstacle_is_rejected(load_shipped):
     mesh = load_shipped("example3.json").mesh(max_area=4)
     with pytest.raises(SimulationError, match=r"pedestrian 1 starts at \(75.000, 25.000\) m, outside"):
@@ -122,7 +144,8 @@ def test_bad_physical_parameters(bad):
         SocialForceParams(**bad)
 
 
-@pytest.mark.parametrize("bad", [{"dt": 0.0}, {"route_interval": -1.0}, {"dt": float("nan")}])
+@pytest.mark.parametrize("bad", [{"dt": 0.0}, {"route_interval": -1.0}, {"dt": float("nan")},
+                                 {"density_stages": 2}])
 def test_bad_numerics(bad):
     with pytest.raises(ParameterError, match=f"parameter '{next(iter(bad))}'"):
         SFMNumerics(**bad)
