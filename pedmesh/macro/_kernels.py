@@ -9,27 +9,33 @@ import numpy as np
 
 
 @nb.njit(cache=True)
-def positivity_limit(V, qbar, rho_eps, rho_cut):
-    """Zhang-Shu scaling of the density at the 9 points of every cell so that it is
-    >= rho_eps (where the cell average allows), and first order for all variables in cells
-    with an average density below ``rho_cut`` [ped/m^2]. In place."""
-    m, npt, nv = V.shape
+def positivity_limit(Ve, Vi, qbar, rho_eps, rho_cut):
+    """Zhang-Shu scaling of the density at the 6 edge points ``Ve`` (m, 6, nv) and the 3
+    interior points ``Vi`` (m, 3, nv) of every cell so that it is >= rho_eps (where the cell
+    average allows), and first order for all variables in cells with an average density
+    below ``rho_cut`` [ped/m^2]. In place."""
+    m, _, nv = Ve.shape
     for i in range(m):
         r = qbar[i, 0]
         if r < rho_cut:
-            for p in range(npt):
-                for v in range(nv):
-                    V[i, p, v] = qbar[i, v]
+            for v in range(nv):
+                for p in range(6):
+                    Ve[i, p, v] = qbar[i, v]
+                for p in range(3):
+                    Vi[i, p, v] = qbar[i, v]
             continue
-        mn = V[i, 0, 0]
-        for p in range(1, npt):
-            if V[i, p, 0] < mn:
-                mn = V[i, p, 0]
+        mn = Ve[i, 0, 0]
+        for p in range(1, 6):
+            mn = min(mn, Ve[i, p, 0])
+        for p in range(3):
+            mn = min(mn, Vi[i, p, 0])
         if mn < rho_eps:
             th = (r - rho_eps) / (r - mn) if r > mn else 0.0
             th = min(max(th, 0.0), 1.0)
-            for p in range(npt):
-                V[i, p, 0] = r + th * (V[i, p, 0] - r)
+            for p in range(6):
+                Ve[i, p, 0] = r + th * (Ve[i, p, 0] - r)
+            for p in range(3):
+                Vi[i, p, 0] = r + th * (Vi[i, p, 0] - r)
 
 
 @nb.njit(cache=True)
@@ -55,14 +61,15 @@ def gather_edges(V, e2t, edge_cell_pt, edges, qL, qR):
 
 @nb.njit(cache=True)
 def gather_cells(Q, e2t, edges, qL, qR):
-    """First-order edge states: the cell averages on both sides (boundary: qR = qL)."""
+    """First-order edge states: the cell averages on both sides (boundary: qR = qL), at
+    each Gauss point of ``qL``/``qR`` (k, g, nv) (g = 1: one state per edge)."""
     for a in range(edges.shape[0]):
         e = edges[a]
         L = e2t[e, 0]
         R = e2t[e, 1]
         if R < 0:
             R = L
-        for g in range(2):
+        for g in range(qL.shape[1]):
             for v in range(Q.shape[1]):
                 qL[a, g, v] = Q[L, v]
                 qR[a, g, v] = Q[R, v]
@@ -70,11 +77,16 @@ def gather_cells(Q, e2t, edges, qL, qR):
 
 @nb.njit(cache=True)
 def integrate_edges(Fpts, lengths, edges, F):
-    """Edge fluxes F[edges] = l_e/2 (F_g0 + F_g1) from point fluxes (k, 2, nv)."""
+    """Edge fluxes F[edges] = l_e/2 (F_g0 + F_g1) from point fluxes (k, 2, nv), or
+    F[edges] = l_e F_g0 from one point flux per edge (k, 1, nv)."""
+    two = Fpts.shape[1] == 2
     for a in range(edges.shape[0]):
         e = edges[a]
         for v in range(Fpts.shape[2]):
-            F[e, v] = 0.5 * lengths[e] * (Fpts[a, 0, v] + Fpts[a, 1, v])
+            if two:
+                F[e, v] = 0.5 * lengths[e] * (Fpts[a, 0, v] + Fpts[a, 1, v])
+            else:
+                F[e, v] = lengths[e] * Fpts[a, 0, v]
 
 
 @nb.njit(cache=True)
@@ -111,7 +123,8 @@ def velocity_bounds(Q, nbr, rho_cut, lo, hi, active):
 
 
 @nb.njit(cache=True)
-def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, vactive):
+def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, vactive,
+              UL, P, R_):
     """Flux-corrected transport: F = FL + theta (FH - FL) per edge (all components), with
     theta chosen so that after a forward-Euler stage every cell keeps
 
@@ -123,12 +136,13 @@ def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, v
     >= 0``), so Zalesak's recipe applies: per cell and constraint the available margin of
     the low-order update over the decreases the antidiffusive fluxes would cause, and per
     edge the smallest factor of the cells it would decrease. ``FH``, ``FL`` (k, nv) are edge
-    fluxes integrated over the edges, oriented L -> R.
+    fluxes integrated over the edges, oriented L -> R. ``UL`` (m, nv), ``P`` and ``R_``
+    (m, 5) are work arrays.
     """
     ne, nv = FH.shape
     m = areas.shape[0]
     nc = 5 if (use_vel and nv == 3) else 1
-    UL = Q.copy()
+    UL[:] = Q
     for e in range(ne):
         L = e2t[e, 0]
         R = e2t[e, 1]
@@ -138,7 +152,7 @@ def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, v
             if R >= 0:
                 UL[R, v] += f / areas[R]
     # constraint c of cell i: g = a . U with a given by (c, i)
-    P = np.zeros((m, nc))
+    P[:, :nc] = 0.0
     for e in range(ne):
         for side in range(2):
             i = e2t[e, side]
@@ -152,7 +166,7 @@ def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, v
                 dec = sgn * da * dt / areas[i]  # decrease of g_i
                 if dec > 0.0:
                     P[i, c] += dec
-    R_ = np.ones((m, nc))
+    R_[:, :nc] = 1.0
     for i in range(m):
         for c in range(nc):
             if P[i, c] > 0.0:

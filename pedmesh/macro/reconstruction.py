@@ -56,16 +56,26 @@ class ReconstructionData:
     """Precomputed per-mesh data of the CWENO3 reconstruction (see module docstring)."""
 
     h: np.ndarray  # (m,) sqrt(area) [m]
-    stencil: np.ndarray  # (m, S) cells of the central stencil, -1 padded
-    R: np.ndarray  # (m, 5, S) least-squares operator of P_opt
+    stencil: np.ndarray  # (m, S) int32 cells of the central stencil, -1 padded (S = largest)
+    R: np.ndarray  # (m, S, 5) least-squares operator of P_opt (row s: stencil cell s)
     opt_degree: np.ndarray  # (m,) 2, 1 or 0
     moments: np.ndarray  # (m, 3) <xi^2>, <xi eta>, <eta^2> over the cell itself
-    pairs: np.ndarray  # (m, 6, 2) cells of the linear sector polynomials, -1 unused
+    pairs: np.ndarray  # (m, 6, 2) int32 cells of the linear sector polynomials, -1 unused
     pair_inv: np.ndarray  # (m, 6, 2, 2) inverse of the 2x2 centroid-offset matrices
     n_pairs: np.ndarray  # (m,)
-    basis_pts: np.ndarray  # (m, 9, 5) basis values at the 6 edge + 3 interior points
+    point_xy: np.ndarray  # (m, 9, 2) scaled coordinates (xi, eta) of the 6 edge + 3 interior points
     edge_pt: np.ndarray  # (k, 2, 2) physical Gauss points of every edge
     edge_cell_pt: np.ndarray  # (k, 2, 2) local point index (0..5) in the L and R cell
+
+    def apply(self, qbar: np.ndarray, out_edge: np.ndarray, out_int: np.ndarray, *,
+              order: int = 3, eps_hat: float = 0.1, qref: np.ndarray | None = None) -> None:
+        """Point values of the reconstruction of cell averages ``qbar`` (m, nv): at the 6
+        edge Gauss points into ``out_edge`` (m, 6, nv) and at the 3 interior points into
+        ``out_int`` (m, 3, nv); see :func:`reconstruct`."""
+        qref = np.ones(qbar.shape[1]) if qref is None else qref
+        reconstruct(qbar, order, self.stencil, self.R, self.opt_degree, self.moments,
+                    self.pairs, self.pair_inv, self.n_pairs, self.h, eps_hat, qref,
+                    self.point_xy, out_edge, out_int)
 
 
 def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
@@ -150,7 +160,7 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
                   (xi * eta).mean(-1) - own[:, None, 3], (eta * eta).mean(-1) - own[:, None, 4]],
                  axis=-1)  # (m, S, 5)
     A[stencil < 0] = 0.0
-    R = np.zeros((m, 5, MAX_STENCIL))
+    R = np.zeros((m, MAX_STENCIL, 5))
     opt_degree = np.zeros(m, np.int64)
     for L in np.unique(size):
         rows = np.flatnonzero(size == L)
@@ -162,7 +172,7 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
             sv = np.linalg.svd(AL, compute_uv=False)
             quad = (sv[:, -1] > 0) & (sv[:, 0] < COND_LIMIT * sv[:, -1])
             if quad.any():
-                R[rows[quad], :, :L] = np.linalg.pinv(AL[quad])
+                R[rows[quad], :L, :] = np.linalg.pinv(AL[quad]).transpose(0, 2, 1)
                 opt_degree[rows[quad]] = 2
         lin = ~quad
         if lin.any():
@@ -171,7 +181,7 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
             ok = (sv[:, -1] > 0) & (sv[:, 0] < COND_LIMIT * sv[:, -1])
             r = rows[lin][ok]
             if len(r):
-                R[r, :2, :L] = np.linalg.pinv(A1[ok])
+                R[r, :L, :2] = np.linalg.pinv(A1[ok]).transpose(0, 2, 1)
                 opt_degree[r] = 1
     # linear sector polynomials on pairs of neighbours
     pairs = np.full((m, MAX_PAIRS, 2), -1, np.int64)
@@ -237,8 +247,6 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     cell_pts[:, 6:] = np.einsum("pb,mbd->mpd", INTERIOR_BARY, P)
     xi = (cell_pts[..., 0] - cen[:, None, 0]) / h[:, None]
     eta = (cell_pts[..., 1] - cen[:, None, 1]) / h[:, None]
-    basis = np.stack([xi, eta, xi * xi - own[:, None, 2], xi * eta - own[:, None, 3],
-                      eta * eta - own[:, None, 4]], axis=-1)
     # local point index of each edge Gauss point in its two cells
     e2t = mesh.edge_triangles
     edge_cell_pt = np.full((len(e), 2, 2), -1, np.int64)
@@ -248,10 +256,14 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
         loc = np.argmax(t2e[t[ok]] == np.flatnonzero(ok)[:, None], axis=1)
         edge_cell_pt[ok, side, 0] = 2 * loc
         edge_cell_pt[ok, side, 1] = 2 * loc + 1
+    # compact storage (the reconstruction streams these arrays once per stage)
+    S = max(int(size.max()), 1)
     data = ReconstructionData(
-        h=h, stencil=stencil, R=np.ascontiguousarray(R), opt_degree=opt_degree,
-        moments=moments, pairs=pairs, pair_inv=pair_inv, n_pairs=n_pairs,
-        basis_pts=np.ascontiguousarray(basis), edge_pt=edge_pt, edge_cell_pt=edge_cell_pt,
+        h=h, stencil=np.ascontiguousarray(stencil[:, :S], dtype=np.int32),
+        R=np.ascontiguousarray(R[:, :S]), opt_degree=opt_degree, moments=moments,
+        pairs=pairs.astype(np.int32), pair_inv=pair_inv, n_pairs=n_pairs,
+        point_xy=np.ascontiguousarray(np.stack([xi, eta], axis=-1)), edge_pt=edge_pt,
+        edge_cell_pt=edge_cell_pt,
     )
     cache["cweno3"] = data
     return data
@@ -265,18 +277,23 @@ def _beta2(a1, a2, a3, a4, a5, mxx, mxy, myy):
 
 @nb.njit(cache=True)
 def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
-                eps_hat, qref, basis_pts, out):
-    """Point values (m, 9, nv) of the reconstruction of cell averages ``qbar`` (m, nv).
+                eps_hat, qref, point_xy, out_edge, out_int):
+    """Point values of the reconstruction of cell averages ``qbar`` (m, nv): ``out_edge``
+    (m, 6, nv) at the edge Gauss points and ``out_int`` (m, 3, nv) at the interior points
+    (kept apart so that the sources read the interior values without a copy).
 
     ``order`` 3: CWENO3; 2: CWENO with the linear least-squares polynomial of the central
-    stencil (second-order option); 1: first order (constant). The polynomial coefficients
-    are kept in scalars (registers), which is measurably faster than small work arrays.
+    stencil (second-order option); 1: first order (constant). Per cell, the five polynomial
+    coefficients of every variable are found first (the stencil sums in scalars), then the
+    basis is evaluated once per point for all variables.
     """
     m, nv = qbar.shape
     S = stencil.shape[1]
     q0 = np.zeros(nv)
+    coef = np.zeros((nv, 5))
     lin = np.zeros((MAX_PAIRS, 2))
     wk = np.zeros(MAX_PAIRS)
+    inv_d0 = 1.0 / D0
     for i in range(m):
         deg = opt_degree[i] if order >= 2 else 0
         npair = n_pairs[i]
@@ -305,10 +322,16 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                     deg = 0
         if deg == 0 or npair == 0:
             # first order (or no sector polynomials to detect oscillations)
-            for p in range(9):
-                for v in range(nv):
-                    out[i, p, v] = q0[v]
+            for v in range(nv):
+                for p in range(6):
+                    out_edge[i, p, v] = q0[v]
+                for p in range(3):
+                    out_int[i, p, v] = q0[v]
             continue
+        mxx = moments[i, 0]
+        mxy = moments[i, 1]
+        myy = moments[i, 2]
+        dk = (1.0 - D0) / npair
         for v in range(nv):
             p0 = p1 = p2 = p3 = p4 = 0.0
             for s in range(S):
@@ -316,11 +339,11 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                 if j < 0:
                     break
                 d = qbar[j, v] - q0[v]
-                p0 += R[i, 0, s] * d
-                p1 += R[i, 1, s] * d
-                p2 += R[i, 2, s] * d
-                p3 += R[i, 3, s] * d
-                p4 += R[i, 4, s] * d
+                p0 += R[i, s, 0] * d
+                p1 += R[i, s, 1] * d
+                p2 += R[i, s, 2] * d
+                p3 += R[i, s, 3] * d
+                p4 += R[i, s, 4] * d
             if order == 2:
                 p2 = p3 = p4 = 0.0
             for kp in range(npair):
@@ -329,8 +352,7 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                 lin[kp, 0] = pair_inv[i, kp, 0, 0] * da + pair_inv[i, kp, 0, 1] * db
                 lin[kp, 1] = pair_inv[i, kp, 1, 0] * da + pair_inv[i, kp, 1, 1] * db
             eps = (eps_hat * qref[v] * h[i]) ** 2 + 1e-300
-            dk = (1.0 - D0) / npair
-            b0 = _beta2(p0, p1, p2, p3, p4, moments[i, 0], moments[i, 1], moments[i, 2])
+            b0 = _beta2(p0, p1, p2, p3, p4, mxx, mxy, myy)
             al0 = D0 / (b0 + eps) ** 2
             tot = al0
             for kp in range(npair):
@@ -338,18 +360,31 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                 wk[kp] = dk / (bk + eps) ** 2
                 tot += wk[kp]
             # P0 = (Popt - sum dk Pk)/d0; combined p = w0 P0 + sum wk Pk
-            w0 = al0 / tot
-            a0 = w0 * p0 / D0
-            a1 = w0 * p1 / D0
-            a2 = w0 * p2 / D0
-            a3 = w0 * p3 / D0
-            a4 = w0 * p4 / D0
+            inv_tot = 1.0 / tot
+            w0 = al0 * inv_tot
+            f0 = w0 * inv_d0
+            a0 = f0 * p0
+            a1 = f0 * p1
+            c0 = w0 * dk * inv_d0
             for kp in range(npair):
-                c = wk[kp] / tot - w0 * dk / D0
+                c = wk[kp] * inv_tot - c0
                 a0 += c * lin[kp, 0]
                 a1 += c * lin[kp, 1]
-            for p in range(9):
-                out[i, p, v] = (q0[v] + a0 * basis_pts[i, p, 0] + a1 * basis_pts[i, p, 1]
-                                + a2 * basis_pts[i, p, 2] + a3 * basis_pts[i, p, 3]
-                                + a4 * basis_pts[i, p, 4])
-    return out
+            coef[v, 0] = a0
+            coef[v, 1] = a1
+            coef[v, 2] = f0 * p2
+            coef[v, 3] = f0 * p3
+            coef[v, 4] = f0 * p4
+        for p in range(9):
+            x = point_xy[i, p, 0]
+            y = point_xy[i, p, 1]
+            bxx = x * x - mxx
+            bxy = x * y - mxy
+            byy = y * y - myy
+            for v in range(nv):
+                val = (q0[v] + coef[v, 0] * x + coef[v, 1] * y + coef[v, 2] * bxx
+                       + coef[v, 3] * bxy + coef[v, 4] * byy)
+                if p < 6:
+                    out_edge[i, p, v] = val
+                else:
+                    out_int[i, p - 6, v] = val

@@ -24,7 +24,7 @@ from ..errors import ParameterError, SimulationError
 from ..mesh.trimesh import BoundaryKind, TriMesh
 from . import _kernels as K
 from .models.base import MacroModel
-from .reconstruction import build_reconstruction, reconstruct
+from .reconstruction import build_reconstruction
 
 __all__ = ["FVOptions", "FVState", "FVSolver", "FVController"]
 
@@ -159,14 +159,18 @@ class FVSolver:
             return
         self._buf_nv = nv
         m = self.mesh.n_triangles
-        self._V = np.empty((m, 9, nv))
+        self._Ve = np.empty((m, 6, nv))  # reconstructed values at the edge Gauss points
+        self._Vi = np.empty((m, 3, nv))  # ... and at the interior quadrature points
         self._cat = {}
         for name, idx in (("interior", self.interior), ("wall", self.walls), ("exit", self.exits)):
             k = len(idx)
             self._cat[name] = dict(
                 idx=idx, qL=np.empty((k, 2, nv)), qR=np.empty((k, 2, nv)),
+                qL1=np.empty((k, 1, nv)), qR1=np.empty((k, 1, nv)),  # one state per edge
                 nx=np.ascontiguousarray(self.nx2[idx].ravel()),
                 ny=np.ascontiguousarray(self.ny2[idx].ravel()),
+                nx1=np.ascontiguousarray(self.nx2[idx, 0]),
+                ny1=np.ascontiguousarray(self.ny2[idx, 0]),
                 pts=np.ascontiguousarray(self.recon.edge_pt[idx].reshape(-1, 2)),
             )
         self._F = np.empty((self.mesh.n_edges, nv))
@@ -177,38 +181,42 @@ class FVSolver:
         self._vlo = np.zeros((m, 2))
         self._vhi = np.zeros((m, 2))
         self._vact = np.zeros(m, np.bool_)
+        self._fct_work = (np.empty((m, nv)), np.empty((m, 5)), np.empty((m, 5)))
         self._sample_directions()
 
     def _sample_directions(self) -> None:
         for c in getattr(self, "_cat", {}).values():
             c["ex"] = np.ascontiguousarray(self.e_edge[c["idx"], :, 0].ravel())
             c["ey"] = np.ascontiguousarray(self.e_edge[c["idx"], :, 1].ravel())
+            c["ex1"] = np.ascontiguousarray(self.e_edge[c["idx"], 0, 0])
+            c["ey1"] = np.ascontiguousarray(self.e_edge[c["idx"], 0, 1])
         self._e_int_x = np.ascontiguousarray(self.e_int[..., 0].ravel())
         self._e_int_y = np.ascontiguousarray(self.e_int[..., 1].ravel())
 
     def _fluxes(self, t: float, F: np.ndarray, alpha: np.ndarray | None = None,
                 constant: bool = False) -> None:
         """Edge fluxes (integrated over the edges, L -> R) from the gathered edge states.
-        ``constant``: the states are the same at both Gauss points (first order), so models
-        whose flux does not depend on the direction evaluate one point per edge."""
+        ``constant``: first-order states, the same at both Gauss points; models whose flux
+        does not depend on the direction then evaluate one point per edge (from the
+        ``qL1``/``qR1`` states), the others both (from ``qL``/``qR``)."""
         model = self.model
         nv = model.n_vars
-        one = constant and not model.direction_dependent_flux and self.boundary_state is None
+        one = self._one_point_low_order(constant)
         for name, c in self._cat.items():
             idx = c["idx"]
             if len(idx) == 0:
                 continue
             if one:
-                qL = c["qL"][:, 0]
-                nx, ny, ex, ey = c["nx"][::2], c["ny"][::2], c["ex"][::2], c["ey"][::2]
+                qL = c["qL1"].reshape(-1, nv)
+                nx, ny, ex, ey = c["nx1"], c["ny1"], c["ex1"], c["ey1"]
                 if name == "interior":
-                    Fp, _ = model.flux(qL, np.ascontiguousarray(c["qR"][:, 0]), nx, ny, ex, ey)
+                    Fp, _ = model.flux(qL, c["qR1"].reshape(-1, nv), nx, ny, ex, ey)
                 elif name == "wall":
                     Fp = model.wall_flux(qL, nx, ny, ex, ey)
                 else:
                     Fp = model.exit_flux(qL, nx, ny, ex, ey, self.exit_kind)
-                Fp = np.ascontiguousarray(Fp)
-                K.integrate_edges(np.stack([Fp, Fp], axis=1), self.lengths, idx, F)
+                K.integrate_edges(np.ascontiguousarray(Fp).reshape(-1, 1, nv), self.lengths,
+                                  idx, F)
                 continue
             qL = c["qL"].reshape(-1, nv)
             if name == "interior":
@@ -225,24 +233,29 @@ class FVSolver:
                 Fp = model.exit_flux(qL, c["nx"], c["ny"], c["ex"], c["ey"], self.exit_kind)
             K.integrate_edges(np.ascontiguousarray(Fp).reshape(-1, 2, nv), self.lengths, idx, F)
 
+    def _one_point_low_order(self, constant: bool) -> bool:
+        return (constant and not self.model.direction_dependent_flux
+                and self.boundary_state is None)
+
     def residual(self, Q: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """dQ/dt of a forward-Euler stage of length ``dt`` (which the flux limiter needs) and
         the exit mass flux per exit [ped/s]."""
         opt, model, R = self.options, self.model, self.recon
         m, nv = Q.shape
         self._buffers(nv)
-        V = self._V
-        reconstruct(Q, opt.order, R.stencil, R.R, R.opt_degree, R.moments, R.pairs,
-                    R.pair_inv, R.n_pairs, R.h, opt.eps_hat, self.qref, R.basis_pts, V)
+        Ve, Vi = self._Ve, self._Vi
+        R.apply(Q, Ve, Vi, order=opt.order, eps_hat=opt.eps_hat, qref=self.qref)
         if opt.limiter:
-            K.positivity_limit(V, Q, opt.rho_eps, model_rho_cut(model))
+            K.positivity_limit(Ve, Vi, Q, opt.rho_eps, model_rho_cut(model))
         for c in self._cat.values():
-            K.gather_edges(V, self.e2t, R.edge_cell_pt, c["idx"], c["qL"], c["qR"])
+            K.gather_edges(Ve, self.e2t, R.edge_cell_pt, c["idx"], c["qL"], c["qR"])
         F = self._F
         self._fluxes(t, F)
         if opt.limiter and opt.order > 1:
+            one = self._one_point_low_order(True)
             for c in self._cat.values():
-                K.gather_cells(Q, self.e2t, c["idx"], c["qL"], c["qR"])
+                K.gather_cells(Q, self.e2t, c["idx"], c["qL1" if one else "qL"],
+                               c["qR1" if one else "qR"])
             FL = self._FL
             self._fluxes(t, FL, constant=True)
             FH = self._Fb
@@ -252,11 +265,10 @@ class FVSolver:
                 K.velocity_bounds(Q, self.mesh.triangle_neighbors, model_rho_cut(model),
                                   self._vlo, self._vhi, self._vact)
             K.fct_blend(FH, FL, self.e2t, self.areas, Q, dt, opt.rho_eps, F, self._theta,
-                        use_vel, self._vlo, self._vhi, self._vact)
+                        use_vel, self._vlo, self._vhi, self._vact, *self._fct_work)
         dQ = np.empty_like(Q)
         K.divergence(F, self.e2t, self.areas, dQ)
-        S = model.source(np.ascontiguousarray(V[:, 6:9]).reshape(-1, nv), self._e_int_x,
-                         self._e_int_y)
+        S = model.source(Vi.reshape(-1, nv), self._e_int_x, self._e_int_y)
         K.add_point_mean(np.ascontiguousarray(S), dQ)
         C = model.cell_source(Q)
         if C is not None:

@@ -7,7 +7,7 @@ import pytest
 
 from pedmesh import Exit, Room
 from pedmesh.macro.quadrature import cell_averages
-from pedmesh.macro.reconstruction import INTERIOR_BARY, build_reconstruction, reconstruct
+from pedmesh.macro.reconstruction import INTERIOR_BARY, build_reconstruction
 
 ROOM = Room([(0, 0), (4, 0), (4, 3), (0, 3)], exits=[Exit("e", [(4, 1), (4, 2)])])
 
@@ -22,10 +22,10 @@ def _points(mesh, R):
 
 def _recon(mesh, q, order=3, eps_hat=0.1):
     R = build_reconstruction(mesh)
-    out = np.zeros((mesh.n_triangles, 9, q.shape[1]))
-    reconstruct(q, order, R.stencil, R.R, R.opt_degree, R.moments, R.pairs, R.pair_inv,
-                R.n_pairs, R.h, eps_hat, np.ones(q.shape[1]), R.basis_pts, out)
-    return R, out
+    ve = np.zeros((mesh.n_triangles, 6, q.shape[1]))
+    vi = np.zeros((mesh.n_triangles, 3, q.shape[1]))
+    R.apply(q, ve, vi, order=order, eps_hat=eps_hat)
+    return R, np.concatenate([ve, vi], axis=1)
 
 
 def test_cell_averages_are_kept():
