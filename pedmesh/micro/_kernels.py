@@ -46,17 +46,26 @@ def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
 
 # ------------------------------------------------------------------ pair forces + density
 @nb.njit(cache=True)
-def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj):
+def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
+                with_density):
     """All pairs closer than ``rc``, each once (i from the lower cell), split in two groups:
     the *near* pairs (closer than ``rc_near``) fill ``pi``/``pj`` from the front, the *far*
     ones from the back. Returns ``(n_near, n_far)``, or ``(-1, -1)`` if ``pi``/``pj`` are
-    too small.
+    too small. The cells must be at least ``rc`` wide.
 
     The pair forces only act within the near group (``rc_near`` = force cut-off + skin), so
-    the far group, typically two thirds of the list, needs the density kernel alone.
+    the far group needs the density kernel alone. With ``with_density`` the Gaussian kernel
+    densities (cut-off ``rc_d``, self term included) at these positions go into ``rho`` on
+    the way, and the far pairs are not stored (``n_far = 0``).
     """
     rc2 = rc * rc
     rn2 = rc_near * rc_near
+    rd2 = rc_d * rc_d
+    w0 = 1.0 / (math.pi * R * R)
+    invR2 = 1.0 / (R * R)
+    if with_density:
+        for i in range(n):
+            rho[i] = w0
     cap = pi.shape[0]
     m_near = 0
     m_far = 0
@@ -86,23 +95,31 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj):
                     i = cell_order[a]
                     xi = x[i, 0]
                     yi = x[i, 1]
+                    rhoi = 0.0
                     t0 = a + 1 if q == 0 else cell_start[c2]
                     for b in range(t0, t1):
                         j = cell_order[b]
                         dx = xi - x[j, 0]
                         dy = yi - x[j, 1]
                         d2 = dx * dx + dy * dy
-                        if d2 < rc2:
+                        if with_density and d2 < rd2:
+                            w = w0 * math.exp(-d2 * invR2)
+                            rhoi += w
+                            rho[j] += w
+                        if d2 < rn2:
                             if m_near + m_far >= cap:
                                 return -1, -1
-                            if d2 < rn2:
-                                pi[m_near] = i
-                                pj[m_near] = j
-                                m_near += 1
-                            else:
-                                m_far += 1
-                                pi[cap - m_far] = i
-                                pj[cap - m_far] = j
+                            pi[m_near] = i
+                            pj[m_near] = j
+                            m_near += 1
+                        elif d2 < rc2 and not with_density:
+                            if m_near + m_far >= cap:
+                                return -1, -1
+                            m_far += 1
+                            pi[cap - m_far] = i
+                            pj[cap - m_far] = j
+                    if with_density:
+                        rho[i] += rhoi
     return m_near, m_far
 
 
@@ -448,16 +465,19 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     case that someone moved more than skin/2 since). Returns the number of pairs, or -1 if
     ``pi``/``pj`` are too small (the caller enlarges them and repeats the step).
     """
-    rc_list = max(rc_f, rc_d) + skin
+    every = density_stages == 3
+    # with the density held over the step it is computed while listing the pairs, and the
+    # list needs the near pairs only (those within the force cut-off plus the skin)
+    rc_list = max(rc_f + skin, rc_d + skin) if every else rc_f + skin
     build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
     n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,
-                                pi, pj)
+                                pi, pj, rho, rc_d, R, not every)
     if n_near < 0:
         return -1
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, True)
+          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, every)
     for i in range(n):
         rho_out[i] = rho[i]
         for d in range(2):
@@ -465,13 +485,13 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
             vs[i, d] = v[i, d] + dt * F[i, d]
     # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
     n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
-                                            cinv, cnx, cny, rc_f, rc_d, pi, pj, n_near, n_far,
-                                            False)
+                                            cinv, cnx, cny, rc_f, rc_d, R, pi, pj, rho, n_near,
+                                            n_far, False)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, density_stages == 3)
+          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, every)
     for i in range(n):
         for d in range(2):
             x1 = xs[i, d]
@@ -480,13 +500,13 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
             vs[i, d] = 0.75 * v[i, d] + 0.25 * (v1 + dt * F[i, d])
     # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2)); a list rebuilt for stage 2 has no skin
     n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
-                                            cinv, cnx, cny, rc_f, rc_d, pi, pj, n_near, n_far,
-                                            rebuilt)
+                                            cinv, cnx, cny, rc_f, rc_d, R, pi, pj, rho, n_near,
+                                            n_far, rebuilt)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, density_stages == 3)
+          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, every)
     for i in range(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])
@@ -496,7 +516,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
 
 @nb.njit(cache=True)
 def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d,
-                   pi, pj, n_near, n_far, force):
+                   R, pi, pj, rho, n_near, n_far, force):
     """Keep the pair list (built with skin at ``x0``) if nobody moved more than skin/2 since,
     else (or if ``force``) rebuild it for the positions ``x`` without skin, valid for this
     stage only. Returns ``(n_near, n_far, rebuilt)``."""
@@ -507,7 +527,7 @@ def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, 
         if force or dx * dx + dy * dy > lim:
             build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
             n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny,
-                                        max(rc_f, rc_d), rc_f, pi, pj)
+                                        max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False)
             return n_near, n_far, True
     return n_near, n_far, False
 

@@ -141,11 +141,14 @@ class Simulation:
         self._pi = np.empty(max(32 * N, 1024), np.int64)
         self._pj = np.empty(max(32 * N, 1024), np.int64)
         self.last_pair_count = 0
-        # neighbour grid over the room (cells at least as large as the largest cut-off)
+        # neighbour grid over the room: cells at least as large as the pair-list radius (the
+        # force cut-off plus the skin; the density cut-off, plus the skin if the density is
+        # re-evaluated at later stages from the same list)
         self.rc_f = nm.force_cutoff
         self.rc_d = nm.density_cutoff * p.R
         self.rc_w = max(nm.force_cutoff - p.r, 1e-6)
-        cell = max(self.rc_f, self.rc_d)
+        cell = max(self.rc_f + PAIR_SKIN,
+                   self.rc_d + (PAIR_SKIN if nm.density_stages == 3 else 0.0))
         x0, y0, x1, y1 = mesh.bounds
         self._cx0, self._cy0 = x0 - cell, y0 - cell
         self._cinv = 1.0 / cell

@@ -39,12 +39,14 @@ def direct_pairs(x, v, rc_f, rc_d, p=P):
     return F, rho
 
 
-def kernel_pairs(x, v, rc_f, rc_d, p=P, skin=0.0, x_list=None):
+def kernel_pairs(x, v, rc_f, rc_d, p=P, skin=0.0, x_list=None, density_in_build=False):
     """The production path: a pair list built (with ``skin``) at ``x_list`` (default ``x``),
-    then the forces and densities at ``x``."""
+    then the forces and densities at ``x``; with ``density_in_build`` the densities come
+    from the list building (at ``x_list``) and only the near pairs are stored."""
     x_list = x if x_list is None else x_list
     n = len(x)
-    cell = max(rc_f, rc_d) + skin
+    rc_list = rc_f + skin if density_in_build else max(rc_f, rc_d) + skin
+    cell = max(rc_list, rc_d)
     lo = np.minimum(x.min(axis=0), x_list.min(axis=0)) - cell
     hi = np.maximum(x.max(axis=0), x_list.max(axis=0)) + cell
     nx = int((hi[0] - lo[0]) / cell) + 1
@@ -54,19 +56,20 @@ def kernel_pairs(x, v, rc_f, rc_d, p=P, skin=0.0, x_list=None):
     K.build_cells(x_list, n, lo[0], lo[1], 1.0 / cell, nx, ny, start, order)
     pi = np.empty(n * n, np.int64)
     pj = np.empty(n * n, np.int64)
-    n_near, n_far = K.build_pairs(x_list, n, start, order, nx, ny, max(rc_f, rc_d) + skin,
-                                  rc_f + skin, pi, pj)
-    assert n_near > 0 and n_far > 0
-    F = np.zeros((n, 2))
     rho = np.zeros(n)
+    n_near, n_far = K.build_pairs(x_list, n, start, order, nx, ny, rc_list, rc_f + skin, pi, pj,
+                                  rho, rc_d, p.R, density_in_build)
+    assert n_near > 0 and (n_far == 0) == density_in_build
+    F = np.zeros((n, 2))
     K.pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, 2 * p.r, p.A, p.B, p.k,
-                      p.kappa, p.m, p.R, F, rho)
+                      p.kappa, p.m, p.R, F, rho, not density_in_build)
     return F, rho
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("skin", [0.0, 0.2])
-def test_pair_forces_match_direct_formula(seed, skin):
+@pytest.mark.parametrize("density_in_build", [False, True])
+def test_pair_forces_match_direct_formula(seed, skin, density_in_build):
     rng = np.random.default_rng(seed)
     n = 300
     x = rng.uniform(0, 8, (n, 2))  # about 4.7 ped/m^2: many bodies in contact
@@ -74,9 +77,12 @@ def test_pair_forces_match_direct_formula(seed, skin):
     # with a skin the list is built where everyone was before moving up to skin/2
     step = rng.normal(0, 1, (n, 2))
     step *= 0.4999 * skin / np.maximum(np.hypot(step[:, 0], step[:, 1]), 1e-12)[:, None]
-    F, rho = kernel_pairs(x, v, 1.2, 2.1, skin=skin, x_list=x - step)
+    F, rho = kernel_pairs(x, v, 1.2, 2.1, skin=skin, x_list=x - step,
+                          density_in_build=density_in_build)
     Fd, rhod = direct_pairs(x, v, 1.2, 2.1)
     assert np.abs(F - Fd).max() <= 1e-12 * np.abs(Fd).max()
+    if density_in_build:  # the densities where the list was built
+        _, rhod = direct_pairs(x - step, v, 1.2, 2.1)
     np.testing.assert_allclose(rho, rhod, rtol=1e-13)
     # Newton's third law: the pair forces sum to zero to round-off
     assert np.abs(F.sum(axis=0)).max() <= 1e-12 * np.abs(F).sum()
