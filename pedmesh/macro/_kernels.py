@@ -123,7 +123,7 @@ def velocity_bounds(Q, nbr, rho_cut, lo, hi, active):
 
 
 @nb.njit(cache=True)
-def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, vactive,
+def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, vactive,
               UL, P, R_):
     """Flux-corrected transport: F = FL + theta (FH - FL) per edge (all components), with
     theta chosen so that after a forward-Euler stage every cell keeps
@@ -136,11 +136,11 @@ def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, v
     >= 0``), so Zalesak's recipe applies: per cell and constraint the available margin of
     the low-order update over the decreases the antidiffusive fluxes would cause, and per
     edge the smallest factor of the cells it would decrease. ``FH``, ``FL`` (k, nv) are edge
-    fluxes integrated over the edges, oriented L -> R. ``UL`` (m, nv), ``P`` and ``R_``
-    (m, 5) are work arrays.
+    fluxes integrated over the edges, oriented L -> R; ``inv_areas`` = 1/|T_i| [1/m^2].
+    ``UL`` (m, nv), ``P`` and ``R_`` (m, 5) are work arrays.
     """
     ne, nv = FH.shape
-    m = areas.shape[0]
+    m = inv_areas.shape[0]
     nc = 5 if (use_vel and nv == 3) else 1
     UL[:] = Q
     for e in range(ne):
@@ -148,9 +148,9 @@ def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, v
         R = e2t[e, 1]
         for v in range(nv):
             f = FL[e, v] * dt
-            UL[L, v] -= f / areas[L]
+            UL[L, v] -= f * inv_areas[L]
             if R >= 0:
-                UL[R, v] += f / areas[R]
+                UL[R, v] += f * inv_areas[R]
     # constraint c of cell i: g = a . U with a given by (c, i)
     P[:, :nc] = 0.0
     for e in range(ne):
@@ -163,7 +163,7 @@ def fct_blend(FH, FL, e2t, areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, v
                 if c > 0 and not vactive[i]:
                     continue
                 da = _constraint_dot(c, i, FH, FL, e, vlo, vhi)
-                dec = sgn * da * dt / areas[i]  # decrease of g_i
+                dec = sgn * da * dt * inv_areas[i]  # decrease of g_i
                 if dec > 0.0:
                     P[i, c] += dec
     R_[:, :nc] = 1.0
@@ -212,8 +212,9 @@ def _constraint_dot(c, i, FH, FL, e, vlo, vhi):
 
 
 @nb.njit(cache=True)
-def divergence(F, e2t, areas, out):
-    """out_i = -(1/|T_i|) sum over its edges of the outward edge flux (F oriented L -> R)."""
+def divergence(F, e2t, inv_areas, out):
+    """out_i = -(1/|T_i|) sum over its edges of the outward edge flux (F oriented L -> R);
+    ``inv_areas`` = 1/|T_i|."""
     m, nv = out.shape
     for i in range(m):
         for v in range(nv):
@@ -222,9 +223,9 @@ def divergence(F, e2t, areas, out):
         L = e2t[e, 0]
         R = e2t[e, 1]
         for v in range(nv):
-            out[L, v] -= F[e, v] / areas[L]
+            out[L, v] -= F[e, v] * inv_areas[L]
             if R >= 0:
-                out[R, v] += F[e, v] / areas[R]
+                out[R, v] += F[e, v] * inv_areas[R]
 
 
 @nb.njit(cache=True)

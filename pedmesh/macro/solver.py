@@ -103,6 +103,7 @@ class FVSolver:
         self.exit_owner = mesh.edge_owner[self.exits]
         self.n_exits = len(mesh.exit_names)
         self.areas = mesh.areas
+        self.inv_areas = 1.0 / mesh.areas
         self.lengths = mesh.edge_lengths
         n = mesh.edge_normals
         self.nx2 = np.repeat(n[:, 0], 2).reshape(-1, 2)  # per edge and Gauss point
@@ -264,10 +265,10 @@ class FVSolver:
             if use_vel:
                 K.velocity_bounds(Q, self.mesh.triangle_neighbors, model_rho_cut(model),
                                   self._vlo, self._vhi, self._vact)
-            K.fct_blend(FH, FL, self.e2t, self.areas, Q, dt, opt.rho_eps, F, self._theta,
+            K.fct_blend(FH, FL, self.e2t, self.inv_areas, Q, dt, opt.rho_eps, F, self._theta,
                         use_vel, self._vlo, self._vhi, self._vact, *self._fct_work)
         dQ = np.empty_like(Q)
-        K.divergence(F, self.e2t, self.areas, dQ)
+        K.divergence(F, self.e2t, self.inv_areas, dQ)
         S = model.source(Vi.reshape(-1, nv), self._e_int_x, self._e_int_y)
         K.add_point_mean(np.ascontiguousarray(S), dQ)
         C = model.cell_source(Q)

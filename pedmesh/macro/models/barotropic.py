@@ -157,17 +157,18 @@ def _prim(r, mx, my, rho_cut, umax):
     """Desingularised velocity of a state (Kurganov-Petrova), capped at umax."""
     if r <= 0.0:
         return 0.0, 0.0, 0.0
-    if r >= rho_cut:  # the formula reduces to m / rho exactly
-        ux = mx / r
-        uy = my / r
+    if r >= rho_cut:  # the formula reduces to m / rho
+        ir = 1.0 / r
+        ux = mx * ir
+        uy = my * ir
         if r >= 10.0 * rho_cut:
             return r, ux, uy
     else:
         r4 = r * r * r * r
         c4 = rho_cut * rho_cut * rho_cut * rho_cut
-        d = math.sqrt(r4 + c4)
-        ux = SQRT2 * r * mx / d
-        uy = SQRT2 * r * my / d
+        f = SQRT2 * r / math.sqrt(r4 + c4)
+        ux = f * mx
+        uy = f * my
     s2 = ux * ux + uy * uy
     if s2 > umax * umax:  # near vacuum only (rho < 10 rho_cut): cap the velocity
         f = umax / math.sqrt(s2)
