@@ -1,4 +1,4 @@
-"""Compiled kernels of the finite-volume core: edge-state gathering, positivity limiting,
+"""Compiled kernels of the finite-volume core: first-order edge states, positivity limiting,
 flux blending (FCT), divergence and time-step estimates. Model-specific fluxes and sources
 live in the model modules."""
 
@@ -9,54 +9,34 @@ import numpy as np
 
 
 @nb.njit(cache=True)
-def positivity_limit(Ve, Vi, qbar, rho_eps, rho_cut):
-    """Zhang-Shu scaling of the density at the 6 edge points ``Ve`` (m, 6, nv) and the 3
-    interior points ``Vi`` (m, 3, nv) of every cell so that it is >= rho_eps (where the cell
-    average allows), and first order for all variables in cells with an average density
-    below ``rho_cut`` [ped/m^2]. In place."""
-    m, _, nv = Ve.shape
+def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut):
+    """Zhang-Shu scaling of the density at the 6 edge points (rows ``slot[i, :]`` of ``Ve``
+    (k, nv)) and the 3 interior points ``Vi`` (m, 3, nv) of every cell so that it is
+    >= rho_eps (where the cell average allows), and first order for all variables in cells
+    with an average density below ``rho_cut`` [ped/m^2]. In place."""
+    m, _, nv = Vi.shape
     for i in range(m):
         r = qbar[i, 0]
         if r < rho_cut:
             for v in range(nv):
                 for p in range(6):
-                    Ve[i, p, v] = qbar[i, v]
+                    Ve[slot[i, p], v] = qbar[i, v]
                 for p in range(3):
                     Vi[i, p, v] = qbar[i, v]
             continue
-        mn = Ve[i, 0, 0]
-        for p in range(1, 6):
-            mn = min(mn, Ve[i, p, 0])
-        for p in range(3):
+        mn = Vi[i, 0, 0]
+        for p in range(1, 3):
             mn = min(mn, Vi[i, p, 0])
+        for p in range(6):
+            mn = min(mn, Ve[slot[i, p], 0])
         if mn < rho_eps:
             th = (r - rho_eps) / (r - mn) if r > mn else 0.0
             th = min(max(th, 0.0), 1.0)
             for p in range(6):
-                Ve[i, p, 0] = r + th * (Ve[i, p, 0] - r)
+                k = slot[i, p]
+                Ve[k, 0] = r + th * (Ve[k, 0] - r)
             for p in range(3):
                 Vi[i, p, 0] = r + th * (Vi[i, p, 0] - r)
-
-
-@nb.njit(cache=True)
-def gather_edges(V, e2t, edge_cell_pt, edges, qL, qR):
-    """States on both sides of the Gauss points of the given edges: qL/qR (k, 2, nv).
-    Boundary edges get qR = qL (the boundary condition replaces it)."""
-    for a in range(edges.shape[0]):
-        e = edges[a]
-        L = e2t[e, 0]
-        R = e2t[e, 1]
-        for g in range(2):
-            pl = edge_cell_pt[e, 0, g]
-            for v in range(V.shape[2]):
-                qL[a, g, v] = V[L, pl, v]
-            if R >= 0:
-                pr = edge_cell_pt[e, 1, g]
-                for v in range(V.shape[2]):
-                    qR[a, g, v] = V[R, pr, v]
-            else:
-                for v in range(V.shape[2]):
-                    qR[a, g, v] = V[L, pl, v]
 
 
 @nb.njit(cache=True)

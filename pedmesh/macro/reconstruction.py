@@ -68,14 +68,20 @@ class ReconstructionData:
     edge_cell_pt: np.ndarray  # (k, 2, 2) local point index (0..5) in the L and R cell
 
     def apply(self, qbar: np.ndarray, out_edge: np.ndarray, out_int: np.ndarray, *,
-              order: int = 3, eps_hat: float = 0.1, qref: np.ndarray | None = None) -> None:
+              order: int = 3, eps_hat: float = 0.1, qref: np.ndarray | None = None,
+              slot: np.ndarray | None = None) -> None:
         """Point values of the reconstruction of cell averages ``qbar`` (m, nv): at the 6
-        edge Gauss points into ``out_edge`` (m, 6, nv) and at the 3 interior points into
-        ``out_int`` (m, 3, nv); see :func:`reconstruct`."""
+        edge Gauss points into ``out_edge`` and at the 3 interior points into ``out_int``
+        (m, 3, nv); see :func:`reconstruct`. ``out_edge`` is (m, 6, nv), or any array whose
+        rows ``slot[i, p]`` receive point p of cell i (the solver writes the edge states in
+        the order its fluxes read them)."""
         qref = np.ones(qbar.shape[1]) if qref is None else qref
+        m, nv = qbar.shape
+        if slot is None:
+            slot = np.arange(6 * m).reshape(m, 6)
         reconstruct(qbar, order, self.stencil, self.R, self.opt_degree, self.moments,
                     self.pairs, self.pair_inv, self.n_pairs, self.h, eps_hat, qref,
-                    self.point_xy, out_edge, out_int)
+                    self.point_xy, out_edge.reshape(-1, nv), slot, out_int)
 
 
 def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
@@ -277,10 +283,11 @@ def _beta2(a1, a2, a3, a4, a5, mxx, mxy, myy):
 
 @nb.njit(cache=True)
 def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
-                eps_hat, qref, point_xy, out_edge, out_int):
-    """Point values of the reconstruction of cell averages ``qbar`` (m, nv): ``out_edge``
-    (m, 6, nv) at the edge Gauss points and ``out_int`` (m, 3, nv) at the interior points
-    (kept apart so that the sources read the interior values without a copy).
+                eps_hat, qref, point_xy, out_edge, slot, out_int):
+    """Point values of the reconstruction of cell averages ``qbar`` (m, nv): the value at
+    edge Gauss point p (0..5) of cell i goes to row ``slot[i, p]`` of ``out_edge`` (k, nv),
+    the values at the 3 interior points to ``out_int`` (m, 3, nv) (kept apart so that the
+    sources read them without a copy).
 
     ``order`` 3: CWENO3; 2: CWENO with the linear least-squares polynomial of the central
     stencil (second-order option); 1: first order (constant). Per cell, the five polynomial
@@ -324,7 +331,7 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
             # first order (or no sector polynomials to detect oscillations)
             for v in range(nv):
                 for p in range(6):
-                    out_edge[i, p, v] = q0[v]
+                    out_edge[slot[i, p], v] = q0[v]
                 for p in range(3):
                     out_int[i, p, v] = q0[v]
             continue
@@ -385,6 +392,6 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                 val = (q0[v] + coef[v, 0] * x + coef[v, 1] * y + coef[v, 2] * bxx
                        + coef[v, 3] * bxy + coef[v, 4] * byy)
                 if p < 6:
-                    out_edge[i, p, v] = val
+                    out_edge[slot[i, p], v] = val
                 else:
                     out_int[i, p - 6, v] = val

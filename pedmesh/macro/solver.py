@@ -160,13 +160,19 @@ class FVSolver:
             return
         self._buf_nv = nv
         m = self.mesh.n_triangles
-        self._Ve = np.empty((m, 6, nv))  # reconstructed values at the edge Gauss points
-        self._Vi = np.empty((m, 3, nv))  # ... and at the interior quadrature points
+        # edge states in the order the fluxes read them: Es[side, position, gauss point],
+        # positions = interior edges, then walls, then exits; the reconstruction writes point
+        # p of cell i straight into row slot[i, p] of Es (no gathering)
+        ne = self.mesh.n_edges
+        self._Es = np.empty((2, ne, 2, nv))
+        self._Vi = np.empty((m, 3, nv))  # reconstructed values at the interior points
+        self._slot = self._edge_slots()
         self._cat = {}
+        start = 0
         for name, idx in (("interior", self.interior), ("wall", self.walls), ("exit", self.exits)):
             k = len(idx)
             self._cat[name] = dict(
-                idx=idx, qL=np.empty((k, 2, nv)), qR=np.empty((k, 2, nv)),
+                idx=idx, qL=self._Es[0, start:start + k], qR=self._Es[1, start:start + k],
                 qL1=np.empty((k, 1, nv)), qR1=np.empty((k, 1, nv)),  # one state per edge
                 nx=np.ascontiguousarray(self.nx2[idx].ravel()),
                 ny=np.ascontiguousarray(self.ny2[idx].ravel()),
@@ -174,6 +180,7 @@ class FVSolver:
                 ny1=np.ascontiguousarray(self.ny2[idx, 0]),
                 pts=np.ascontiguousarray(self.recon.edge_pt[idx].reshape(-1, 2)),
             )
+            start += k
         self._F = np.empty((self.mesh.n_edges, nv))
         self._FL = np.empty((self.mesh.n_edges, nv))
         self._Fb = np.empty((self.mesh.n_edges, nv))
@@ -184,6 +191,22 @@ class FVSolver:
         self._vact = np.zeros(m, np.bool_)
         self._fct_work = (np.empty((m, nv)), np.empty((m, 5)), np.empty((m, 5)))
         self._sample_directions()
+
+    def _edge_slots(self) -> np.ndarray:
+        """(m, 6) row of ``Es.reshape(-1, nv)`` for edge Gauss point p of cell i."""
+        ne = self.mesh.n_edges
+        order = np.concatenate([self.interior, self.walls, self.exits])
+        pos = np.empty(ne, np.int64)
+        pos[order] = np.arange(ne)
+        slot = np.full((self.mesh.n_triangles, 6), -1, np.int64)
+        ecp = self.recon.edge_cell_pt
+        for side in range(2):
+            t = self.e2t[:, side]
+            ok = np.flatnonzero(t >= 0)
+            for g in range(2):
+                slot[t[ok], ecp[ok, side, g]] = (side * ne + pos[ok]) * 2 + g
+        assert (slot >= 0).all()
+        return slot
 
     def _sample_directions(self) -> None:
         for c in getattr(self, "_cat", {}).values():
@@ -244,12 +267,11 @@ class FVSolver:
         opt, model, R = self.options, self.model, self.recon
         m, nv = Q.shape
         self._buffers(nv)
-        Ve, Vi = self._Ve, self._Vi
-        R.apply(Q, Ve, Vi, order=opt.order, eps_hat=opt.eps_hat, qref=self.qref)
+        Es, Vi = self._Es.reshape(-1, nv), self._Vi
+        R.apply(Q, Es, Vi, order=opt.order, eps_hat=opt.eps_hat, qref=self.qref,
+                slot=self._slot)
         if opt.limiter:
-            K.positivity_limit(Ve, Vi, Q, opt.rho_eps, model_rho_cut(model))
-        for c in self._cat.values():
-            K.gather_edges(Ve, self.e2t, R.edge_cell_pt, c["idx"], c["qL"], c["qR"])
+            K.positivity_limit(Es, self._slot, Vi, Q, opt.rho_eps, model_rho_cut(model))
         F = self._F
         self._fluxes(t, F)
         if opt.limiter and opt.order > 1:
