@@ -122,7 +122,7 @@ def figures(results: dict, out: Path) -> None:
         pair = [m for m in ("sfm", "mac1") if m in cmp.runs]
         times = DENSITY_TIMES[ex]
         fig, axes = plt.subplots(len(times), len(pair), figsize=(5.2 * len(pair), 2.5 * len(times)),
-                                 squeeze=False)
+                                 squeeze=False, layout="constrained")
         tp = None
         for i, t in enumerate(times):
             for j, lab in enumerate(pair):
@@ -173,10 +173,11 @@ def figures(results: dict, out: Path) -> None:
 
 # ------------------------------------------------------------------ RESULTS.md
 def _first_out(r, fraction=0.01):
+    """Time [s] at which ``fraction`` of the crowd is out (interpolated in the curve)."""
+    from pedmesh.run import evacuation_times_from_curve
+
     t, n = r.evacuation
-    n0 = float(r.summary["n_initial"])
-    idx = np.flatnonzero(n >= fraction * n0)
-    return float(t[idx[0]]) if len(idx) else None
+    return evacuation_times_from_curve(t, n, float(r.summary["n_initial"]), (fraction,))[0]
 
 
 def extent_section(results: dict, times=(20.0, 40.0, 60.0)) -> list[str]:
