@@ -164,7 +164,7 @@ class FVSolver:
         # positions = interior edges, then walls, then exits; the reconstruction writes point
         # p of cell i straight into row slot[i, p] of Es (no gathering)
         ne = self.mesh.n_edges
-        self._Es = np.empty((2, ne, 2, nv))
+        self._Es = np.zeros((2, ne, 2, nv))  # (the outer side of boundary edges stays unused)
         self._Vi = np.empty((m, 3, nv))  # reconstructed values at the interior points
         self._slot = self._edge_slots()
         self._cat = {}
@@ -219,7 +219,7 @@ class FVSolver:
 
     def _fluxes(self, t: float, F: np.ndarray, alpha: np.ndarray | None = None,
                 constant: bool = False) -> None:
-        """Edge fluxes (integrated over the edges, L -> R) from the gathered edge states.
+        """Edge fluxes (integrated over the edges, L -> R) from the edge states.
         ``constant``: first-order states, the same at both Gauss points; models whose flux
         does not depend on the direction then evaluate one point per edge (from the
         ``qL1``/``qR1`` states), the others both (from ``qL``/``qR``)."""

@@ -1,8 +1,8 @@
 """Compiled kernels of the social force model.
 
 All kernels work on flat arrays of the ``n`` active pedestrians (rows ``0..n-1``). Neighbours
-come from a cell list (counting sort into square cells at least as large as the largest
-cut-off) searched over half of the 3x3 stencil, so every pair is visited once and its force
+come from a cell list (counting sort into square cells at least as large as the search
+radius) searched over half of the 3x3 stencil, so every pair is visited once and its force
 is added to one pedestrian and subtracted from the other: Newton's third law holds to
 round-off, and the search is O(n).
 """
@@ -460,9 +460,10 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
 
-    The pairs closer than the largest cut-off plus ``skin`` are listed once per step from a
-    cell list and reused by the three stages (the list is rebuilt for a stage in the rare
-    case that someone moved more than skin/2 since). Returns the number of pairs, or -1 if
+    The pairs closer than the force cut-off plus ``skin`` (with ``density_stages`` 3 also
+    those within the density cut-off plus ``skin``) are listed once per step from a cell
+    list and reused by the three stages (the list is rebuilt for a stage in the rare case
+    that someone moved more than skin/2 since). Returns the number of listed pairs, or -1 if
     ``pi``/``pj`` are too small (the caller enlarges them and repeats the step).
     """
     every = density_stages == 3
