@@ -117,7 +117,7 @@ def step_split(mesh, batches=7, reps=40):
     tri = sim.tri[:n].copy()
     e = np.zeros((n, 2))
     steer = tm(lambda: (K.follow(mesh.points, mesh.triangles, mesh.triangle_neighbors, tri, sim.x,
-                                 n), _interpolate(sim._dpack, tri, sim.x[:n], e)))
+                                 n, sim._dpack), _interpolate(sim._dpack, tri, sim.x[:n], e)))
     per["  steering: locate + desired direction (3 per step)"] = 3 * steer
     t_route = tm(sim._route, 5, 2)
     per["  one route solve (density at vertices + eikonal + directions)"] = t_route

@@ -187,6 +187,15 @@ def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
         out[t, 19] = tdir[t, 1]
 
 
+@nb.njit(cache=True, inline="always")
+def _inside_packed(P, t, px, py, margin):
+    """Whether (px, py) lies in triangle ``t`` with every barycentric coordinate >= margin
+    (from the affine maps of the packed table ``P``: no division)."""
+    l1 = P[t, 0] + P[t, 1] * px + P[t, 2] * py
+    l2 = P[t, 3] + P[t, 4] * px + P[t, 5] * py
+    return l1 >= margin and l2 >= margin and 1.0 - l1 - l2 >= margin
+
+
 @nb.njit(cache=True)
 def _interpolate(P, tri_idx, xy, out):
     """Directions ``out[k]`` at points ``xy[k]`` in triangles ``tri_idx[k]`` (-1: outside,

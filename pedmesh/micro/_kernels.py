@@ -14,9 +14,12 @@ import math
 import numba as nb
 import numpy as np
 
-from ..eikonal.direction import _interpolate
+from ..eikonal.direction import _inside_packed, _interpolate
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
+#: barycentric margin of the division-free "still inside its triangle" test; anything
+#: closer to an edge goes through the exact test and the walk, as before
+INSIDE_MARGIN = 1e-9
 
 
 # ------------------------------------------------------------------ cell list
@@ -326,11 +329,15 @@ def trace(points, triangles, nbr, t0, ax, ay, bx, by):
 
 
 @nb.njit(cache=True)
-def follow(points, triangles, nbr, tri, x, n):
+def follow(points, triangles, nbr, tri, x, n, P):
     """Update the triangle of every pedestrian by walking from its previous triangle.
-    A pedestrian (temporarily) outside the mesh keeps the last triangle it was in."""
+    A pedestrian (temporarily) outside the mesh keeps the last triangle it was in. ``P`` is
+    a packed direction table (:func:`~pedmesh.eikonal.direction._pack`); its affine maps
+    settle the common case, a pedestrian well inside its triangle, without a division."""
     for i in range(n):
         t0 = tri[i]
+        if _inside_packed(P, t0, x[i, 0], x[i, 1], INSIDE_MARGIN):
+            continue
         b0, b1, b2 = _bary(points, triangles, t0, x[i, 0], x[i, 1])
         if b0 >= -1e-12 and b1 >= -1e-12 and b2 >= -1e-12:
             continue  # still in the same triangle (the common case)
@@ -361,7 +368,7 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
             F[i, 0] += (const_u[0] - v[i, 0]) * inv_tau
             F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
         return
-    follow(points, triangles, nbr, tri, x, n)
+    follow(points, triangles, nbr, tri, x, n, dpack)
     _interpolate(dpack, tri[:n], x[:n], e)
     for i in range(n):
         ue = U_f * math.exp(-beta * rho[i])
@@ -372,16 +379,20 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
 # ------------------------------------------------------------------ exits and reflection
 @nb.njit(cache=True)
 def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, edge_owner,
-           edge_normals, exit_of, exit_frac):
+           edge_normals, exit_of, exit_frac, P):
     """After a step: remove pedestrians whose step crossed an exit, reflect those whose step
     crossed a wall (displacement and velocity, as in the paper), and update triangles.
 
     ``exit_of[i]`` is set to the exit number (or -1) and ``exit_frac[i]`` to the fraction of
-    the step at which the exit was crossed. Returns the number of reflections.
+    the step at which the exit was crossed. Returns the number of reflections. A step that
+    ends well inside the triangle it started in (tested with the affine maps of the packed
+    table ``P``) crosses nothing and is left as it is.
     """
     n_reflect = 0
     for i in range(n):
         exit_of[i] = -1
+        if _inside_packed(P, tri[i], x[i, 0], x[i, 1], INSIDE_MARGIN):
+            continue
         ax, ay = x_old[i, 0], x_old[i, 1]
         bx, by = x[i, 0], x[i, 1]
         t = tri[i]

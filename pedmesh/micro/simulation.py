@@ -281,7 +281,7 @@ class Simulation:
         self.n_reflections += K.settle(
             x_old, self.x, self.v, self.tri, n, mesh.points, mesh.triangles,
             mesh.triangle_neighbors, mesh.triangle_edges, mesh.edge_kind, mesh.edge_owner,
-            mesh.edge_normals, self._exit_of, self._exit_frac,
+            mesh.edge_normals, self._exit_of, self._exit_frac, self._dpack,
         )
         gone = self._exit_of[:n] >= 0
         n_gone = int(gone.sum())
