@@ -150,9 +150,14 @@ def jupedsim_example2():
                 per_step=per_step, n_first=n0)
 
 
-def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100):
-    """Cost per agent-step in a hall big enough for 100k agents at about 1 ped/m^2."""
-    out = []
+def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100, rounds=5):
+    """Cost per agent-step in a hall big enough for 100k agents at about 1 ped/m^2.
+
+    The sizes are stepped in turn, ``n_steps / rounds`` steps at a time, so that a change of
+    machine speed during the benchmark (common on shared machines) affects every size alike;
+    each size's cost is its total time over its ``n_steps`` steps (one route solve included).
+    """
+    sims = []
     for N in sizes:
         side = int(np.ceil(np.sqrt(N)))
         W = side + 40.0
@@ -165,13 +170,20 @@ def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100):
         sim = Simulation(mesh)
         for _ in range(5):
             sim.step()
-        r0 = sim.timers.routing
-        t0 = time.perf_counter()
-        for _ in range(n_steps):
-            sim.step()
-        dt = time.perf_counter() - t0
-        route = sim.timers.routing - r0
-        out.append((N, dt / n_steps, dt / n_steps / sim.n, route / n_steps, mesh.n_points))
+        sims.append((N, mesh, sim, sim.timers.routing))
+    wall = np.zeros(len(sims))
+    per_round = n_steps // rounds
+    for _ in range(rounds):
+        for k, (N, mesh, sim, _) in enumerate(sims):
+            t0 = time.perf_counter()
+            for _ in range(per_round):
+                sim.step()
+            wall[k] += time.perf_counter() - t0
+    out = []
+    steps = per_round * rounds
+    for k, (N, mesh, sim, r0) in enumerate(sims):
+        dt = wall[k] / steps
+        out.append((N, dt, dt / sim.n, (sim.timers.routing - r0) / steps, mesh.n_points))
     return out
 
 
@@ -202,8 +214,13 @@ def main(skip_jupedsim: bool = False, skip_scaling: bool = False) -> None:
                   f"{1e3 * j['per_step']:.2f} ms/step with {j['n_first']} agents")
             print(f"  ratio pedmesh / JuPedSim wall time: {ratio:.3f} (goal <= 0.25: "
                   f"{'met' if ratio <= 0.25 else 'NOT met'})")
+            step_ratio = per["step (all included)"] / j["per_step"]
+            print(f"  one step with 2400 present, pedmesh / JuPedSim: {step_ratio:.3f} (a "
+                  "machine-independent view of the 1.5 ms goal, set where JuPedSim takes "
+                  f"about 7.5 ms: {1.5 / 7.5:.2f})")
     if not skip_scaling:
-        print("\nScaling in a hall at about 1 ped/m^2 (routing amortised, re-solved every 1 s):")
+        print("\nScaling in a hall at about 1 ped/m^2 (routing amortised, re-solved every 1 s; "
+              "the sizes stepped in turn, 5 rounds of 20 steps):")
         print("| agents | mesh vertices | ms/step | ns per agent-step | routing ms/step |")
         print("|---:|---:|---:|---:|---:|")
         rows = scaling()
