@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 from pathlib import Path
 
 from .mesh import add_mesh_args
@@ -47,8 +46,8 @@ def run(args: argparse.Namespace) -> int:
     from ..compare import parse_model_specs, run_comparison
     from ..errors import ParameterError
     from ..run import RunInterrupted
+    from ..run.driver import stop_on_signals
     from .mesh import mesh_from_args
-    from .run import _raise_interrupt
 
     specs = parse_model_specs(args.models)
     times = None
@@ -59,18 +58,17 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError(f"--times expects numbers, got '{args.times}'") from None
     room, mesh = mesh_from_args(args)
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-compare"
-    old = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
-        res = run_comparison(room, mesh, specs, out, t_end=args.t_end, quiet=args.quiet,
-                             geometry=str(args.geometry), density_times=times,
-                             mesh_options={"max_area": args.max_area, "min_angle": args.min_angle,
-                                           "exit_size": args.exit_size},
-                             reuse=not args.rerun)
+        with stop_on_signals():  # Ctrl-C / SIGTERM: the running model stops after its step
+            res = run_comparison(room, mesh, specs, out, t_end=args.t_end, quiet=args.quiet,
+                                 geometry=str(args.geometry), density_times=times,
+                                 mesh_options={"max_area": args.max_area,
+                                               "min_angle": args.min_angle,
+                                               "exit_size": args.exit_size},
+                                 reuse=not args.rerun)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}; finished models are kept and reused next time", file=sys.stderr)
         return 130
-    finally:
-        signal.signal(signal.SIGTERM, old)
     if not args.quiet:
         print((out / "comparison.md").read_text())
     print(f"results in {out}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 from pathlib import Path
 
 from .mesh import add_mesh_args
@@ -47,15 +46,12 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
-def _raise_interrupt(signum, frame):  # SIGTERM -> the same path as Ctrl-C
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace) -> int:
     import sys
 
     from ..micro.params import parse_param_overrides
     from ..run import RunInterrupted, get_model, run_model
+    from ..run.driver import stop_on_signals
     from .mesh import mesh_from_args
 
     name, _ = get_model(args.model)  # fail fast on an unknown model
@@ -67,18 +63,16 @@ def run(args: argparse.Namespace) -> int:
         from ..errors import ParameterError
 
         raise ParameterError("--static-routes applies to the sfm model only")
-    old = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
-        s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
-                      quiet=args.quiet, geometry=str(args.geometry),
-                      mesh_options={"max_area": args.max_area, "min_angle": args.min_angle,
-                                    "exit_size": args.exit_size},
-                      model_options=model_options)
+        with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current step
+            s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
+                          quiet=args.quiet, geometry=str(args.geometry),
+                          mesh_options={"max_area": args.max_area, "min_angle": args.min_angle,
+                                        "exit_size": args.exit_size},
+                          model_options=model_options)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}", file=sys.stderr)
         return 130
-    finally:
-        signal.signal(signal.SIGTERM, old)
 
     def fmt(v):
         return "not reached" if v is None else f"{v:.1f} s"

@@ -3,16 +3,48 @@
 from __future__ import annotations
 
 import math
+import signal
 import sys
+import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from ..errors import SimulationError
 from .models import get_model
 from .output import RunWriter
 
-__all__ = ["run_model", "RunInterrupted"]
+__all__ = ["run_model", "RunInterrupted", "request_stop", "stop_on_signals"]
+
+#: set by :func:`request_stop`; runs check it between steps
+_STOP = threading.Event()
+
+
+def request_stop(signum: int | None = None, frame: Any = None) -> None:
+    """Ask the running model to stop after its current step (a signal handler).
+
+    The run then ends as if interrupted, with everything up to that step written. A second
+    request before the run has stopped interrupts at once (KeyboardInterrupt). Raising from
+    the handler itself would interrupt compiled kernels in the middle of a call, which
+    numba reports as an unrelated SystemError.
+    """
+    if _STOP.is_set():
+        raise KeyboardInterrupt
+    _STOP.set()
+
+
+@contextmanager
+def stop_on_signals(signals: tuple[int, ...] = (signal.SIGINT, signal.SIGTERM)) -> Iterator[None]:
+    """Within the block, Ctrl-C and SIGTERM stop a run at the next step boundary."""
+    _STOP.clear()
+    old = {s: signal.signal(s, request_stop) for s in signals}
+    try:
+        yield
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        _STOP.clear()
 
 
 class RunInterrupted(Exception):
@@ -31,11 +63,14 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     """Run ``model`` on ``mesh`` until everyone has left or ``t_end`` [s].
 
     Writes the output directory incrementally (see :mod:`pedmesh.run.output`) and returns
-    the final summary. Raises :class:`RunInterrupted` on Ctrl-C (after writing the summary)
-    and :class:`~pedmesh.errors.SimulationError` on a blow-up (likewise).
+    the final summary. Raises :class:`RunInterrupted` on Ctrl-C or :func:`request_stop`
+    (after writing the summary) and :class:`~pedmesh.errors.SimulationError` on a blow-up
+    (likewise).
     """
     from tqdm import tqdm
 
+    if _STOP.is_set():  # asked to stop before this run began (e.g. between compared models)
+        raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
         raise SimulationError(f"t_end must be a positive number of seconds, got {t_end!r}")
     name, factory = get_model(model)
@@ -93,6 +128,8 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
         while not run.done and run.t < t_end - 1e-9:
             run.step()
             record()
+            if _STOP.is_set():
+                raise KeyboardInterrupt
             if run.t - last_bar >= 0.5 or run.done:
                 bar.update(round(min(run.t, t_end) - last_bar, 3))
                 last_bar = min(run.t, t_end)

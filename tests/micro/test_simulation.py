@@ -161,6 +161,36 @@ def test_blow_up_stops_with_a_message_and_keeps_output(load_shipped, tmp_path):
     assert (tmp_path / "evacuation.csv").read_text().startswith("t,evacuated\n0.0000,0")
 
 
+def test_stop_request_ends_the_run_after_the_step(load_shipped, tmp_path, monkeypatch):
+    """A stop request (what the CLI's Ctrl-C / SIGTERM handler sends) ends the run at the
+    next step boundary with everything written; a second request interrupts at once."""
+    from pedmesh.run import models
+    from pedmesh.run.driver import request_stop, stop_on_signals
+
+    room = load_shipped("corridor_bottleneck.json")
+    calls = {"n": 0}
+    orig = models.SFMRun.step
+
+    def step(self):
+        orig(self)
+        calls["n"] += 1
+        if calls["n"] == 300:
+            request_stop()
+
+    monkeypatch.setattr(models.SFMRun, "step", step)
+    with stop_on_signals():
+        with pytest.raises(RunInterrupted, match="interrupted at t = 3.00 s"):
+            run_model(room, room.mesh(), "sfm", out_dir=tmp_path, quiet=True)
+        with pytest.raises(KeyboardInterrupt):  # the request still stands: a second one
+            request_stop()
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["status"] == "interrupted" and s["t_stop"] == pytest.approx(3.0)
+    assert calls["n"] == 300
+    request_stop()  # outside the block the flag was cleared: this only sets it again
+    with stop_on_signals():  # ... and entering a block clears it
+        pass
+
+
 def test_interrupted_run_keeps_output(load_shipped, tmp_path, monkeypatch):
     from pedmesh.run import models
 
