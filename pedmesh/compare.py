@@ -87,6 +87,14 @@ class ComparisonResult:
     diagrams: dict = field(default_factory=dict)
 
 
+def _density_or_none(res: RunResult, t: float, mesh):
+    """Cell densities of a run's frame at time ``t`` [s], or None where it has none."""
+    try:
+        return res.density_at(t, mesh)[1]
+    except Exception:  # a run that ended before t has no frame there
+        return None
+
+
 def _outflow_total(res: RunResult, kernel: bool = False):
     """(t, total exit flow [ped/s]). For particle runs the plain crossing rate (2 s window)
     unless ``kernel``: then the paper's f_c from the kernel fields at the exits, which sees
@@ -153,12 +161,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
         t90 = ref.summary.get("t_evac_90") or float(ref.evacuation[0][-1])
         density_times = [round(f * t90) for f in (0.25, 0.5, 0.75)]
     ref_flow = _outflow_total(ref)
-    ref_rho = {}
-    for tt in density_times:
-        try:
-            ref_rho[tt] = ref.density_at(tt, mesh)[1]
-        except Exception:  # a run that ended before tt has no frame there
-            ref_rho[tt] = None
+    ref_rho = {tt: _density_or_none(ref, tt, mesh) for tt in density_times}
     rows = []
     for lab in labels:
         res = runs[lab]
@@ -182,11 +185,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
             b = np.interp(g, *fr)
             row["outflow_distance"] = float(np.mean(np.abs(a - b)) / max(np.mean(np.abs(b)), 1e-12))
         for tt in density_times:
-            r0 = ref_rho[tt]
-            try:
-                _, r1, _ = res.density_at(tt, mesh)
-            except Exception:  # a run that ended before tt has no frame there
-                r1 = None
+            r0, r1 = ref_rho[tt], _density_or_none(res, tt, mesh)
             row[f"density_L1_t{tt:g}"] = (None if r0 is None or r1 is None else
                                           density_l1(mesh=mesh, rho1=r1, rho2=r0) / n0)
         rows.append(row)

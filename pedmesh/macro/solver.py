@@ -217,45 +217,33 @@ class FVSolver:
         self._e_int_x = np.ascontiguousarray(self.e_int[..., 0].ravel())
         self._e_int_y = np.ascontiguousarray(self.e_int[..., 1].ravel())
 
-    def _fluxes(self, t: float, F: np.ndarray, alpha: np.ndarray | None = None,
-                constant: bool = False) -> None:
+    def _fluxes(self, t: float, F: np.ndarray, constant: bool = False) -> None:
         """Edge fluxes (integrated over the edges, L -> R) from the edge states.
         ``constant``: first-order states, the same at both Gauss points; models whose flux
-        does not depend on the direction then evaluate one point per edge (from the
-        ``qL1``/``qR1`` states), the others both (from ``qL``/``qR``)."""
+        does not depend on the direction then evaluate one point per edge (the ``*1``
+        arrays: ``qL1``, ``nx1``, ...), the others both (``qL``, ``nx``, ...)."""
         model = self.model
         nv = model.n_vars
         one = self._one_point_low_order(constant)
+        sfx = "1" if one else ""
         for name, c in self._cat.items():
             idx = c["idx"]
             if len(idx) == 0:
                 continue
-            if one:
-                qL = c["qL1"].reshape(-1, nv)
-                nx, ny, ex, ey = c["nx1"], c["ny1"], c["ex1"], c["ey1"]
-                if name == "interior":
-                    Fp, _ = model.flux(qL, c["qR1"].reshape(-1, nv), nx, ny, ex, ey)
-                elif name == "wall":
-                    Fp = model.wall_flux(qL, nx, ny, ex, ey)
-                else:
-                    Fp = model.exit_flux(qL, nx, ny, ex, ey, self.exit_kind)
-                K.integrate_edges(np.ascontiguousarray(Fp).reshape(-1, 1, nv), self.lengths,
-                                  idx, F)
-                continue
-            qL = c["qL"].reshape(-1, nv)
+            qL = c["qL" + sfx].reshape(-1, nv)
+            geo = (c["nx" + sfx], c["ny" + sfx], c["ex" + sfx], c["ey" + sfx])
             if name == "interior":
-                Fp, a = model.flux(qL, c["qR"].reshape(-1, nv), c["nx"], c["ny"], c["ex"], c["ey"])
-                if alpha is not None:
-                    K.max_alpha(a, idx, alpha)
-            elif self.boundary_state is not None:
+                Fp, _ = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
+            elif self.boundary_state is not None:  # (never with one point per edge)
                 g = np.asarray(self.boundary_state(c["pts"][:, 0], c["pts"][:, 1], t),
                                float).reshape(-1, nv)
-                Fp, _ = model.flux(qL, g, c["nx"], c["ny"], c["ex"], c["ey"])
+                Fp, _ = model.flux(qL, g, *geo)
             elif name == "wall":
-                Fp = model.wall_flux(qL, c["nx"], c["ny"], c["ex"], c["ey"])
+                Fp = model.wall_flux(qL, *geo)
             else:
-                Fp = model.exit_flux(qL, c["nx"], c["ny"], c["ex"], c["ey"], self.exit_kind)
-            K.integrate_edges(np.ascontiguousarray(Fp).reshape(-1, 2, nv), self.lengths, idx, F)
+                Fp = model.exit_flux(qL, *geo, self.exit_kind)
+            K.integrate_edges(np.ascontiguousarray(Fp).reshape(len(idx), -1, nv), self.lengths,
+                              idx, F)
 
     def _one_point_low_order(self, constant: bool) -> bool:
         return (constant and not self.model.direction_dependent_flux
@@ -275,10 +263,9 @@ class FVSolver:
         F = self._F
         self._fluxes(t, F)
         if opt.limiter and opt.order > 1:
-            one = self._one_point_low_order(True)
+            sfx = "1" if self._one_point_low_order(True) else ""
             for c in self._cat.values():
-                K.gather_cells(Q, self.e2t, c["idx"], c["qL1" if one else "qL"],
-                               c["qR1" if one else "qR"])
+                K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
             FL = self._FL
             self._fluxes(t, FL, constant=True)
             FH = self._Fb

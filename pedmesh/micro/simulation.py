@@ -165,18 +165,19 @@ class Simulation:
         else:
             self._const_u = np.zeros(2)
             self._use_const = False
-        from ..eikonal.direction import pack_directions
-
-        # packed per-triangle steering table of the current route field (zero: no route yet)
-        self._dpack = pack_directions(mesh, np.zeros((mesh.n_points, 2)),
-                                      np.zeros((mesh.n_triangles, 2)))
         self.phi = np.zeros(mesh.n_points)
         self._next_route = 0.0
         if not self._use_const:
             from ..eikonal import EikonalSolver
 
             self._solver = EikonalSolver(mesh)
-            self._route()
+            self._route()  # sets the packed steering table self._dpack
+        else:
+            from ..eikonal.direction import pack_directions
+
+            # no routes: the packed table only serves its point-in-triangle maps
+            self._dpack = pack_directions(mesh, np.zeros((mesh.n_points, 2)),
+                                          np.zeros((mesh.n_triangles, 2)))
 
     # ------------------------------------------------------------------ helpers
     def _check_overlaps(self, x: np.ndarray) -> None:
