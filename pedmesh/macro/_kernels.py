@@ -70,10 +70,13 @@ def integrate_edges(Fpts, lengths, edges, F):
 
 
 @nb.njit(cache=True)
-def max_alpha(alpha_pts, edges, out):
-    """out[edges] = max over the two Gauss points."""
-    for a in range(edges.shape[0]):
-        out[edges[a]] = max(alpha_pts[2 * a], alpha_pts[2 * a + 1])
+def edge_max(a, edges, out):
+    """out[edges[k]] = max over the row a[k] (the wave speeds at an edge's points)."""
+    for k in range(edges.shape[0]):
+        v = a[k, 0]
+        for g in range(1, a.shape[1]):
+            v = max(v, a[k, g])
+        out[edges[k]] = v
 
 
 @nb.njit(cache=True)

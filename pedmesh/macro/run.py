@@ -133,7 +133,8 @@ class MacroRun:
 
     def parameters(self) -> dict[str, Any]:
         return {**self.model.parameters(), **dataclasses.asdict(self.fv_options),
-                "exit": self.solver.exit_kind, **dataclasses.asdict(self.options)}
+                "cfl": self.solver.cfl, "exit": self.solver.exit_kind,
+                **dataclasses.asdict(self.options)}
 
     def cell_fields(self) -> dict[str, np.ndarray]:
         Q = self.state.Q
@@ -165,6 +166,7 @@ class MacroRun:
             "t_evac_90": t90,
             "t_evac_100": t100,
             "steps": self.state.steps,
+            "steps_retried": self.controller.retried,
             "dt": float(np.mean(np.diff(t))) if len(t) > 1 else None,
             "exits": {n: float(v) for n, v in zip(self.mesh.exit_names, self.state.outflow)},
             "mass_error_max": self.max_mass_error,

@@ -6,11 +6,13 @@
 * :class:`FVSolver` decides *how* to take a step: CWENO3 reconstruction (or second/first
   order), a Zhang-Shu point limiter, the model's numerical fluxes at 2 Gauss points per
   edge, a flux-corrected-transport blend with the first-order fluxes that keeps the density
-  non-negative after every stage, the model's sources at 3 interior points, and Shu-Osher
+  non-negative after every stage (provided the stage is within the forward-Euler bound of
+  its first-order fluxes, which each stage checks), the model's sources at 3 interior points, and Shu-Osher
   SSP-RK3. The desired direction is re-solved from the current density at the start of each
   step (cost ``1/U_e(rho)``, cell densities averaged to the vertices) and frozen across the
   three stages (an O(dt) splitting, like the paper's).
-* :class:`FVController` decides *when*: the CFL time step, output times and stopping.
+* :class:`FVController` decides *when*: the CFL time step (a step refused by a stage is
+  taken again, shorter), output times and stopping.
 """
 
 from __future__ import annotations
@@ -34,7 +36,10 @@ class FVOptions:
     """Numerical options of the finite-volume solver."""
 
     order: int = 3  #: 3 CWENO3 (default), 2 limited linear, 1 first order
-    cfl: float = 0.4  #: dt = cfl * min 2|T| / sum l alpha (1 = first-order positivity bound)
+    #: dt = cfl * min 2|T| / sum l alpha (1 = the first-order positivity bound); stages that
+    #: outrun their own bound are retried (see FVController.advance). None: the model's
+    #: ``default_cfl`` (0.7; 0.4 for mac1)
+    cfl: float | None = None
     exit: str | None = None  #: exit condition; None = the model's default
     limiter: bool = True  #: Zhang-Shu point limiter + FCT flux limiter on the density
     rho_eps: float = 0.0  #: the FCT keeps every cell density >= this [ped/m^2]
@@ -44,7 +49,7 @@ class FVOptions:
     def __post_init__(self) -> None:
         if self.order not in (1, 2, 3):
             raise ParameterError(f"parameter 'order' must be 1, 2 or 3, got {self.order!r}")
-        if not (0 < self.cfl <= 1):
+        if self.cfl is not None and not (0 < self.cfl <= 1):
             raise ParameterError(f"parameter 'cfl' must be in (0, 1], got {self.cfl!r}")
         if not self.eps_hat > 0:
             raise ParameterError(f"parameter 'eps_hat' must be positive, got {self.eps_hat!r}")
@@ -63,6 +68,15 @@ class FVState:
     def copy(self) -> "FVState":
         return FVState(self.Q.copy(), self.t, self.outflow.copy(), self.last_exit_flux.copy(),
                        self.steps)
+
+
+class StageTooLong(Exception):
+    """A stage's wave speeds put its forward-Euler positivity bound ``dt_fe`` [s] below the
+    step length; the controller retries the step with a shorter one."""
+
+    def __init__(self, dt_fe: float) -> None:
+        super().__init__(f"stage forward-Euler bound {dt_fe:.3g} s")
+        self.dt_fe = dt_fe
 
 
 class FVSolver:
@@ -90,6 +104,8 @@ class FVSolver:
         self.mesh = mesh
         self.model = model
         self.options = options or FVOptions()
+        #: the CFL number in use (the option, else the model's default)
+        self.cfl = float(self.options.cfl if self.options.cfl is not None else model.default_cfl)
         self.exit_kind = model.check_exit(self.options.exit)
         self.recon = build_reconstruction(mesh)
         model.bind(mesh)
@@ -217,11 +233,14 @@ class FVSolver:
         self._e_int_x = np.ascontiguousarray(self.e_int[..., 0].ravel())
         self._e_int_y = np.ascontiguousarray(self.e_int[..., 1].ravel())
 
-    def _fluxes(self, t: float, F: np.ndarray, constant: bool = False) -> None:
+    def _fluxes(self, t: float, F: np.ndarray, constant: bool = False,
+                alpha: np.ndarray | None = None) -> None:
         """Edge fluxes (integrated over the edges, L -> R) from the edge states.
         ``constant``: first-order states, the same at both Gauss points; models whose flux
         does not depend on the direction then evaluate one point per edge (the ``*1``
-        arrays: ``qL1``, ``nx1``, ...), the others both (``qL``, ``nx``, ...)."""
+        arrays: ``qL1``, ``nx1``, ...), the others both (``qL``, ``nx``, ...).
+        ``alpha`` (n_edges,): receives each edge's largest wave speed [m/s] (at walls and
+        exits that of the inner state, as in :meth:`max_dt`)."""
         model = self.model
         nv = model.n_vars
         one = self._one_point_low_order(constant)
@@ -232,18 +251,33 @@ class FVSolver:
                 continue
             qL = c["qL" + sfx].reshape(-1, nv)
             geo = (c["nx" + sfx], c["ny" + sfx], c["ex" + sfx], c["ey" + sfx])
+            a = None
             if name == "interior":
-                Fp, _ = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
+                Fp, a = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
             elif self.boundary_state is not None:  # (never with one point per edge)
                 g = np.asarray(self.boundary_state(c["pts"][:, 0], c["pts"][:, 1], t),
                                float).reshape(-1, nv)
-                Fp, _ = model.flux(qL, g, *geo)
+                Fp, a = model.flux(qL, g, *geo)
             elif name == "wall":
                 Fp = model.wall_flux(qL, *geo)
             else:
                 Fp = model.exit_flux(qL, *geo, self.exit_kind)
+            if alpha is not None:
+                if a is None:
+                    _, a = model.flux(qL, qL, *geo)
+                K.edge_max(np.ascontiguousarray(a, dtype=np.float64).reshape(len(idx), -1), idx,
+                           alpha)
             K.integrate_edges(np.ascontiguousarray(Fp).reshape(len(idx), -1, nv), self.lengths,
                               idx, F)
+
+    def _low_order(self, Q: np.ndarray, t: float, F: np.ndarray, alpha: np.ndarray) -> None:
+        """First-order edge fluxes ``F`` of cell averages ``Q`` and every edge's largest wave
+        speed ``alpha`` [m/s]."""
+        sfx = "1" if self._one_point_low_order(True) else ""
+        for c in self._cat.values():
+            K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
+        alpha[:] = 0.0
+        self._fluxes(t, F, constant=True, alpha=alpha)
 
     def _one_point_low_order(self, constant: bool) -> bool:
         return (constant and not self.model.direction_dependent_flux
@@ -263,11 +297,14 @@ class FVSolver:
         F = self._F
         self._fluxes(t, F)
         if opt.limiter and opt.order > 1:
-            sfx = "1" if self._one_point_low_order(True) else ""
-            for c in self._cat.values():
-                K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
-            FL = self._FL
-            self._fluxes(t, FL, constant=True)
+            FL, alpha = self._FL, self._alpha
+            self._low_order(Q, t, FL, alpha)
+            # the flux limiter keeps rho >= 0 only if the first-order stage does: dt within
+            # the forward-Euler bound of this stage's wave speeds (which can exceed those of
+            # the step start, from which the step was sized)
+            dt_fe = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, 1.0)
+            if dt > dt_fe:
+                raise StageTooLong(dt_fe)
             FH = self._Fb
             FH[:] = F
             use_vel = bool(getattr(model, "pressureless", False)) and nv == 3
@@ -287,28 +324,17 @@ class FVSolver:
         return dQ, out
 
     # ------------------------------------------------------------------ stepping
-    def max_dt(self, Q: np.ndarray) -> float:
-        """The CFL time step [s] of the state (first-order wave speeds at cell averages)."""
-        nv = Q.shape[1]
-        self._buffers(nv)
-        c = self._cat["interior"]
-        K.gather_cells(Q, self.e2t, c["idx"], c["qL"], c["qR"])
-        _, a = self.model.flux(c["qL"].reshape(-1, nv), c["qR"].reshape(-1, nv), c["nx"],
-                               c["ny"], c["ex"], c["ey"])
+    def max_dt(self, Q: np.ndarray, t: float = 0.0) -> float:
+        """The CFL time step [s] of the state at time ``t`` [s]: ``cfl`` times the
+        forward-Euler positivity bound of the first-order fluxes at the cell averages (the
+        bound every stage checks, see :class:`StageTooLong`), and the model's source limit."""
+        self._buffers(Q.shape[1])
         alpha = self._alpha
-        alpha[:] = 0.0
-        K.max_alpha(a, c["idx"], alpha)
-        for name in ("wall", "exit"):
-            b = self._cat[name]
-            if len(b["idx"]):
-                K.gather_cells(Q, self.e2t, b["idx"], b["qL"], b["qR"])
-                _, ab = self.model.flux(b["qL"].reshape(-1, nv), b["qR"].reshape(-1, nv),
-                                        b["nx"], b["ny"], b["ex"], b["ey"])
-                K.max_alpha(ab, b["idx"], alpha)
+        self._low_order(Q, t, self._FL, alpha)
         floor = float(getattr(self.model, "speed_floor", 0.0))
         if floor > 0:
             np.maximum(alpha, floor, out=alpha)
-        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, self.options.cfl)
+        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, self.cfl)
         return min(dt, self.model.source_dt(Q))
 
     def step(self, state: FVState, dt: float) -> None:
@@ -335,7 +361,7 @@ class FVSolver:
         if not np.all(np.isfinite(state.Q)):
             raise SimulationError(
                 f"non-finite state at t = {state.t:.3f} s; try a smaller CFL number, e.g. "
-                f"--param cfl={self.options.cfl / 2:g}"
+                f"--param cfl={self.cfl / 2:g}"
             )
 
     def mass(self, Q: np.ndarray) -> float:
@@ -366,17 +392,31 @@ class FVController:
             state.last_exit_flux = np.zeros(solver.n_exits)
         self.mass0 = solver.mass(state.Q) + float(state.outflow.sum())
         self.dt_last = 0.0
+        self.retried = 0  #: steps taken again with a shorter dt (see :class:`StageTooLong`)
 
     def advance(self, t_stop: float | None = None) -> float:
-        """One step (no further than ``t_stop``); returns the step length [s]."""
+        """One step (no further than ``t_stop``); returns the step length [s].
+
+        A step whose stage outruns its forward-Euler bound is taken again with ``cfl`` times
+        that bound (and at most 0.9 of the rejected length); the state is only replaced by a
+        completed step."""
         s = self.solver
         s.update_route(self.state.Q)
-        dt = s.max_dt(self.state.Q)
+        dt = s.max_dt(self.state.Q, self.state.t)
         if not np.isfinite(dt) or dt <= 0:
             dt = 1e-2
         if t_stop is not None:
             dt = min(dt, max(t_stop - self.state.t, 1e-12))
-        s.step(self.state, dt)
+        for _ in range(40):
+            try:
+                s.step(self.state, dt)
+                break
+            except StageTooLong as e:
+                self.retried += 1
+                dt = min(s.cfl * e.dt_fe, 0.9 * dt)
+        else:
+            raise SimulationError(
+                f"no stable time step found at t = {self.state.t:.3f} s (last tried {dt:.3g} s)")
         self.dt_last = dt
         return dt
 

@@ -29,6 +29,8 @@ class MacroModel:
     #: the numerical flux depends on the direction e (so it differs between Gauss points
     #: even for equal states)
     direction_dependent_flux: bool = True
+    #: CFL number when the options do not set one (see :class:`~pedmesh.macro.solver.FVOptions`)
+    default_cfl: float = 0.7
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         """Numerical flux density (k, nv) across the normal (from L to R) and the wave speed
