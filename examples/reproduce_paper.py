@@ -225,6 +225,11 @@ def results_md(results: dict, out: Path, wall: dict | None = None) -> str:
              "max_area 0.5 m^2). Times in seconds. Distances are against the social force "
              "model (sfm) of the same example: mean |N_out(t) - N_sfm(t)|/N for the "
              "evacuation curves, mean |f_c - f_c,sfm| / mean f_c,sfm for the outflow.", ""]
+    cfls = sorted({float(c) for (_, _, cmp) in results.values() for r in cmp.runs.values()
+                   if (c := r.summary.get("parameters", {}).get("cfl")) is not None})
+    if cfls:
+        lines += [f"The continuum runs used CFL {', '.join(f'{c:g}' for c in cfls)} "
+                  "(`cfl` in each run's summary.json).", ""]
     lines += ["## Evacuation times", "",
               "| example | model | T50 | T90 | T100 | first 1 % out | curve distance | outflow distance | steps | wall [s] |",
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
