@@ -248,24 +248,26 @@ def _all_pairs(tri_pts, I, J, dist, k_range, FG, Qt, Gam, dr, r_max, FG_inf, Q_i
         K[p, 2] = k[1, 1]
 
 
+@nb.njit(cache=True, inline="always")
+def _row_dot2(ptr, idx, dx, dy, rho, i):
+    """Row i of two CSR matrices with one pattern times rho (sums in CSR order)."""
+    fx = 0.0
+    fy = 0.0
+    for k in range(ptr[i], ptr[i + 1]):
+        r = rho[idx[k]]
+        fx += dx[k] * r
+        fy += dy[k] * r
+    return fx, fy
+
+
 @nb.njit(cache=True)
 def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, out):
     """out_i = rho_i (sum_j W_ij rho_j [+ sum_j I_ij rho_j]) for both components, with Wx,
     Wy (and Ix, Iy) sharing one CSR pattern each (sums in CSR order, like scipy's)."""
     for i in range(rho.shape[0]):
-        fx = 0.0
-        fy = 0.0
-        for k in range(ptr[i], ptr[i + 1]):
-            r = rho[idx[k]]
-            fx += dx[k] * r
-            fy += dy[k] * r
+        fx, fy = _row_dot2(ptr, idx, dx, dy, rho, i)
         if walls:
-            gx = 0.0
-            gy = 0.0
-            for k in range(iptr[i], iptr[i + 1]):
-                r = rho[iidx[k]]
-                gx += ix[k] * r
-                gy += iy[k] * r
+            gx, gy = _row_dot2(iptr, iidx, ix, iy, rho, i)
             fx = fx + gx
             fy = fy + gy
         out[i, 0] = rho[i] * fx

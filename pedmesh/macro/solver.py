@@ -7,10 +7,10 @@
   order), a Zhang-Shu point limiter, the model's numerical fluxes at 2 Gauss points per
   edge, a flux-corrected-transport blend with the first-order fluxes that keeps the density
   non-negative after every stage (provided the stage is within the forward-Euler bound of
-  its first-order fluxes, which each stage checks), the model's sources at 3 interior points, and Shu-Osher
-  SSP-RK3. The desired direction is re-solved from the current density at the start of each
-  step (cost ``1/U_e(rho)``, cell densities averaged to the vertices) and frozen across the
-  three stages (an O(dt) splitting, like the paper's).
+  its first-order fluxes, which each stage checks), the model's sources at 3 interior
+  points, and Shu-Osher SSP-RK3. The desired direction is re-solved from the current
+  density at the start of each step (cost ``1/U_e(rho)``, cell densities averaged to the
+  vertices) and frozen across the three stages (an O(dt) splitting, like the paper's).
 * :class:`FVController` decides *when*: the CFL time step (a step refused by a stage is
   taken again, shorter), output times and stopping.
 """

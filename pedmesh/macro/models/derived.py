@@ -47,12 +47,12 @@ def _sfm_kernels(A=2000.0, B=0.08, k=1.2e5, kappa=2.4e5, m=60.0, r=0.15):
 class Mac1(BarotropicModel):
     """The direct nonlocal continuum model (see module docstring).
 
-    Default CFL 0.4, not the core's 0.7: at larger steps the stiff friction term decides the
-    step (its bound 2/rate below is one of stability, not accuracy) and the run changes. On
-    Example 2 (mesh h = 1.1 m) cfl 0.2 and 0.4 give T50/T90/T100 within 0.03/0.03/0.24 s of
-    each other; cfl 0.55 and 0.7 move T90 by 1.2 and 1.5 s, with or without the friction
-    bound, and cfl 0.7 with a friction bound of 1/rate is back within 0.02 s of cfl 0.2 but
-    needs more steps than cfl 0.4. (An implicit friction step would lift this limit.)
+    Default CFL 0.4, not the core's 0.7: larger steps resolve the stiff friction term
+    (relaxation rate ~ sum_j tr(K_ij) rho_j) poorly and the run changes. On Example 2 (mesh
+    h = 1.1 m) cfl 0.2 and 0.4 give T50/T90/T100 within 0.03/0.03/0.24 s of each other;
+    cfl 0.55 and 0.7 move T90 by 1.2 and 1.5 s (also without the friction's stability bound
+    2/rate); cfl 0.7 with every step also kept below 1/rate is back within 0.1 s of cfl 0.2
+    but needs more steps than cfl 0.4. An implicit friction step would lift this limit.
     """
 
     default_cfl = 0.4
