@@ -61,6 +61,15 @@ class MacroModel:
         """Largest stable time step [s] of the sources (inf if they do not limit it)."""
         return np.inf
 
+    #: the model has a stiff source that the solver applies by Strang splitting around each
+    #: SSP-RK3 step (:meth:`split_source`) instead of inside the stages
+    has_split_source: bool = False
+
+    def split_source(self, Q: np.ndarray, dt: float) -> np.ndarray:
+        """The state (m, nv) after the split source acted alone for ``dt`` [s] on ``Q``
+        (a new array; the density must not change)."""
+        raise NotImplementedError
+
     #: smallest wave speed [m/s] the CFL condition assumes
     speed_floor: float = 0.0
 
