@@ -125,18 +125,22 @@ def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vh
     ne, nv = FH.shape
     m = inv_areas.shape[0]
     nc = 5 if (use_vel and nv == 3) else 1
-    UL[:] = Q
+    nu = nv if nc > 1 else 1  # the constraints read the density only, or all variables
+    for i in range(m):
+        for v in range(nu):
+            UL[i, v] = Q[i, v]
+        for c in range(nc):
+            P[i, c] = 0.0
+    # one pass over the edges: the low-order update, and per cell and constraint c (g = a . U
+    # with a given by (c, i)) the decreases the antidiffusive fluxes would cause
     for e in range(ne):
         L = e2t[e, 0]
         R = e2t[e, 1]
-        for v in range(nv):
+        for v in range(nu):
             f = FL[e, v] * dt
             UL[L, v] -= f * inv_areas[L]
             if R >= 0:
                 UL[R, v] += f * inv_areas[R]
-    # constraint c of cell i: g = a . U with a given by (c, i)
-    P[:, :nc] = 0.0
-    for e in range(ne):
         for side in range(2):
             i = e2t[e, side]
             if i < 0:
@@ -149,9 +153,9 @@ def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vh
                 dec = sgn * da * dt * inv_areas[i]  # decrease of g_i
                 if dec > 0.0:
                     P[i, c] += dec
-    R_[:, :nc] = 1.0
     for i in range(m):
         for c in range(nc):
+            R_[i, c] = 1.0
             if P[i, c] > 0.0:
                 if c == 0:
                     g = UL[i, 0] - rho_eps

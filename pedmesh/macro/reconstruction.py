@@ -79,9 +79,10 @@ class ReconstructionData:
         m, nv = qbar.shape
         if slot is None:
             slot = np.arange(6 * m).reshape(m, 6)
-        reconstruct(qbar, order, self.stencil, self.R, self.opt_degree, self.moments,
-                    self.pairs, self.pair_inv, self.n_pairs, self.h, eps_hat, qref,
-                    self.point_xy, out_edge.reshape(-1, nv), slot, out_int)
+        kernel = _reconstruct3 if nv == 3 else reconstruct
+        kernel(qbar, order, self.stencil, self.R, self.opt_degree, self.moments, self.pairs,
+               self.pair_inv, self.n_pairs, self.h, eps_hat, qref, self.point_xy,
+               out_edge.reshape(-1, nv), slot, out_int)
 
 
 def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
@@ -395,3 +396,185 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                     out_edge[slot[i, p], v] = val
                 else:
                     out_int[i, p - 6, v] = val
+
+
+@nb.njit(cache=True, inline="always")
+def _w(b, eps, d):
+    """CWENO nonlinear weight d / (beta + eps)^2."""
+    x = b + eps
+    return d / (x * x)
+
+
+@nb.njit(cache=True)
+def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
+                  eps_hat, qref, point_xy, out_edge, slot, out_int):
+    """:func:`reconstruct` for exactly 3 variables (density and momentum), each quantity held
+    in scalars per variable: every stencil and sector row is read once for all three
+    variables, and the work arrays of the general kernel are gone (about 10 % faster)."""
+    m = qbar.shape[0]
+    S = stencil.shape[1]
+    inv_d0 = 1.0 / D0
+    for i in range(m):
+        deg = opt_degree[i] if order >= 2 else 0
+        npair = n_pairs[i]
+        qa = qbar[i, 0]
+        qb = qbar[i, 1]
+        qc = qbar[i, 2]
+        if deg > 0 and npair > 0:
+            flat = True
+            for s in range(S):
+                j = stencil[i, s]
+                if j < 0:
+                    break
+                if qbar[j, 0] != qa or qbar[j, 1] != qb or qbar[j, 2] != qc:
+                    flat = False
+                    break
+            if flat:
+                for kp in range(npair):
+                    a_ = pairs[i, kp, 0]
+                    b_ = pairs[i, kp, 1]
+                    if (qbar[a_, 0] != qa or qbar[a_, 1] != qb or qbar[a_, 2] != qc
+                            or qbar[b_, 0] != qa or qbar[b_, 1] != qb or qbar[b_, 2] != qc):
+                        flat = False
+                if flat:
+                    deg = 0
+        if deg == 0 or npair == 0:
+            for p in range(6):
+                k = slot[i, p]
+                out_edge[k, 0] = qa
+                out_edge[k, 1] = qb
+                out_edge[k, 2] = qc
+            for p in range(3):
+                out_int[i, p, 0] = qa
+                out_int[i, p, 1] = qb
+                out_int[i, p, 2] = qc
+            continue
+        mxx = moments[i, 0]
+        mxy = moments[i, 1]
+        myy = moments[i, 2]
+        dk = (1.0 - D0) / npair
+        a0 = a1 = a2 = a3 = a4 = 0.0
+        b0 = b1 = b2 = b3 = b4 = 0.0
+        c0 = c1 = c2 = c3 = c4 = 0.0
+        for s in range(S):
+            j = stencil[i, s]
+            if j < 0:
+                break
+            da = qbar[j, 0] - qa
+            db = qbar[j, 1] - qb
+            dc = qbar[j, 2] - qc
+            r0 = R[i, s, 0]
+            r1 = R[i, s, 1]
+            r2 = R[i, s, 2]
+            r3 = R[i, s, 3]
+            r4 = R[i, s, 4]
+            a0 += r0 * da
+            a1 += r1 * da
+            a2 += r2 * da
+            a3 += r3 * da
+            a4 += r4 * da
+            b0 += r0 * db
+            b1 += r1 * db
+            b2 += r2 * db
+            b3 += r3 * db
+            b4 += r4 * db
+            c0 += r0 * dc
+            c1 += r1 * dc
+            c2 += r2 * dc
+            c3 += r3 * dc
+            c4 += r4 * dc
+        if order == 2:
+            a2 = a3 = a4 = b2 = b3 = b4 = c2 = c3 = c4 = 0.0
+        hh = h[i] * eps_hat
+        ea = (hh * qref[0]) ** 2 + 1e-300
+        eb = (hh * qref[1]) ** 2 + 1e-300
+        ec = (hh * qref[2]) ** 2 + 1e-300
+        wa0 = _w(_beta2(a0, a1, a2, a3, a4, mxx, mxy, myy), ea, D0)
+        wb0 = _w(_beta2(b0, b1, b2, b3, b4, mxx, mxy, myy), eb, D0)
+        wc0 = _w(_beta2(c0, c1, c2, c3, c4, mxx, mxy, myy), ec, D0)
+        ta = wa0
+        tb = wb0
+        tc = wc0
+        # per variable: sum_k w_k lin_k (s..) and sum_k lin_k (u..) of the sector gradients
+        sax = say = sbx = sby = scx = scy = 0.0
+        uax = uay = ubx = uby = ucx = ucy = 0.0
+        for kp in range(npair):
+            pa = pairs[i, kp, 0]
+            pb = pairs[i, kp, 1]
+            g00 = pair_inv[i, kp, 0, 0]
+            g01 = pair_inv[i, kp, 0, 1]
+            g10 = pair_inv[i, kp, 1, 0]
+            g11 = pair_inv[i, kp, 1, 1]
+            d1 = qbar[pa, 0] - qa
+            d2 = qbar[pb, 0] - qa
+            lx = g00 * d1 + g01 * d2
+            ly = g10 * d1 + g11 * d2
+            w = _w(lx * lx + ly * ly, ea, dk)
+            ta += w
+            sax += w * lx
+            say += w * ly
+            uax += lx
+            uay += ly
+            d1 = qbar[pa, 1] - qb
+            d2 = qbar[pb, 1] - qb
+            lx = g00 * d1 + g01 * d2
+            ly = g10 * d1 + g11 * d2
+            w = _w(lx * lx + ly * ly, eb, dk)
+            tb += w
+            sbx += w * lx
+            sby += w * ly
+            ubx += lx
+            uby += ly
+            d1 = qbar[pa, 2] - qc
+            d2 = qbar[pb, 2] - qc
+            lx = g00 * d1 + g01 * d2
+            ly = g10 * d1 + g11 * d2
+            w = _w(lx * lx + ly * ly, ec, dk)
+            tc += w
+            scx += w * lx
+            scy += w * ly
+            ucx += lx
+            ucy += ly
+        # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
+        ia = 1.0 / ta
+        ib = 1.0 / tb
+        ic = 1.0 / tc
+        fa = wa0 * ia * inv_d0
+        fb = wb0 * ib * inv_d0
+        fc = wc0 * ic * inv_d0
+        ka = fa * dk
+        kb = fb * dk
+        kc = fc * dk
+        A0 = fa * a0 + sax * ia - ka * uax
+        A1 = fa * a1 + say * ia - ka * uay
+        B0 = fb * b0 + sbx * ib - kb * ubx
+        B1 = fb * b1 + sby * ib - kb * uby
+        C0 = fc * c0 + scx * ic - kc * ucx
+        C1 = fc * c1 + scy * ic - kc * ucy
+        A2 = fa * a2
+        A3 = fa * a3
+        A4 = fa * a4
+        B2 = fb * b2
+        B3 = fb * b3
+        B4 = fb * b4
+        C2 = fc * c2
+        C3 = fc * c3
+        C4 = fc * c4
+        for p in range(9):
+            x = point_xy[i, p, 0]
+            y = point_xy[i, p, 1]
+            bxx = x * x - mxx
+            bxy = x * y - mxy
+            byy = y * y - myy
+            va = qa + A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy
+            vb = qb + B0 * x + B1 * y + B2 * bxx + B3 * bxy + B4 * byy
+            vc = qc + C0 * x + C1 * y + C2 * bxx + C3 * bxy + C4 * byy
+            if p < 6:
+                k = slot[i, p]
+                out_edge[k, 0] = va
+                out_edge[k, 1] = vb
+                out_edge[k, 2] = vc
+            else:
+                out_int[i, p - 6, 0] = va
+                out_int[i, p - 6, 1] = vb
+                out_int[i, p - 6, 2] = vc
