@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PARAMS = {"rdue": {"U_f", "beta"}, "pw": {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}}
 
 
-def residual_cost(repeats: int = 11):
+def residual_cost(repeats: int = 21):
     rows = []
     for target in (10_000, 40_000, 160_000):
         room = Room([(0, 0), (100, 0), (100, 50), (0, 50)], exits=[Exit("e", [(100, 20), (100, 30)])])

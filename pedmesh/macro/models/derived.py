@@ -8,8 +8,9 @@
         + rho int Psi(|x-y|)/|x-y|^2 <u(y)-u(x), (x-y)^perp> (x-y)^perp rho(y) dy   (friction)
 
 with the SFM kernels Phi, Psi (:mod:`pedmesh.macro.kernels`), sparse operators built once per
-mesh (:mod:`pedmesh.macro.nonlocal_ops`), walls acting through mirror images, and the
-Rusanov wave speed ``|u.n| + sqrt(gamma1 rho)`` (the repulsion is an un-upwinded pressure).
+mesh (:mod:`pedmesh.macro.nonlocal_ops`), walls acting through mirror images, the
+Rusanov wave speed ``|u.n| + sqrt(gamma1 rho)`` (the repulsion is an un-upwinded pressure)
+and the stiff friction applied by Strang splitting in sub-steps (see :class:`Mac1`).
 
 ``mac2`` family (hydrodynamic scaling, paper eq. mac2) with S1 in {local f22, nonlocal f21}
 and S2 in {nonlocal friction f31, none f32}:
