@@ -282,6 +282,40 @@ def _beta2(a1, a2, a3, a4, a5, mxx, mxy, myy):
             + 4 * a4 * (a3 + a5) * mxy + 4 * a3 * a3 + a4 * a4 + 4 * a5 * a5)
 
 
+@nb.njit(cache=True, inline="always")
+def _basis(point_xy, i, p, mxx, mxy, myy):
+    """The mean-free basis xi, eta, xi^2 - <xi^2>, xi eta - <xi eta>, eta^2 - <eta^2> at
+    point p of cell i."""
+    x = point_xy[i, p, 0]
+    y = point_xy[i, p, 1]
+    return x, y, x * x - mxx, x * y - mxy, y * y - myy
+
+
+@nb.njit(cache=True, inline="always")
+def _same_rows(qbar, i, j):
+    """Whether cells i and j hold the same values of every variable."""
+    for v in range(qbar.shape[1]):
+        if qbar[j, v] != qbar[i, v]:
+            return False
+    return True
+
+
+@nb.njit(cache=True, inline="always")
+def _flat(qbar, i, stencil, pairs, npair):
+    """Whether every cell of the central stencil and the sector pairs of cell i holds the
+    values of cell i (constant data, e.g. the empty parts of a room: first order is exact)."""
+    for s in range(stencil.shape[1]):
+        j = stencil[i, s]
+        if j < 0:
+            break
+        if not _same_rows(qbar, i, j):
+            return False
+    for kp in range(npair):
+        if not (_same_rows(qbar, i, pairs[i, kp, 0]) and _same_rows(qbar, i, pairs[i, kp, 1])):
+            return False
+    return True
+
+
 @nb.njit(cache=True)
 def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
                 eps_hat, qref, point_xy, out_edge, slot, out_int):
@@ -307,27 +341,8 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
         npair = n_pairs[i]
         for v in range(nv):
             q0[v] = qbar[i, v]
-        if deg > 0 and npair > 0:
-            # constant data around the cell (e.g. the empty parts of a room): nothing to do
-            flat = True
-            for s in range(S):
-                j = stencil[i, s]
-                if j < 0:
-                    break
-                for v in range(nv):
-                    if qbar[j, v] != q0[v]:
-                        flat = False
-                        break
-                if not flat:
-                    break
-            if flat:
-                for kp in range(npair):
-                    for v in range(nv):
-                        if (qbar[pairs[i, kp, 0], v] != q0[v]
-                                or qbar[pairs[i, kp, 1], v] != q0[v]):
-                            flat = False
-                if flat:
-                    deg = 0
+        if deg > 0 and npair > 0 and _flat(qbar, i, stencil, pairs, npair):
+            deg = 0  # constant data around the cell (e.g. the empty parts of a room)
         if deg == 0 or npair == 0:
             # first order (or no sector polynomials to detect oscillations)
             for v in range(nv):
@@ -384,11 +399,7 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
             coef[v, 3] = f0 * p3
             coef[v, 4] = f0 * p4
         for p in range(9):
-            x = point_xy[i, p, 0]
-            y = point_xy[i, p, 1]
-            bxx = x * x - mxx
-            bxy = x * y - mxy
-            byy = y * y - myy
+            x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
             for v in range(nv):
                 val = (q0[v] + coef[v, 0] * x + coef[v, 1] * y + coef[v, 2] * bxx
                        + coef[v, 3] * bxy + coef[v, 4] * byy)
@@ -403,6 +414,17 @@ def _w(b, eps, d):
     """CWENO nonlinear weight d / (beta + eps)^2."""
     x = b + eps
     return d / (x * x)
+
+
+@nb.njit(cache=True, inline="always")
+def _sector(qbar, pa, pb, v, q0, g00, g01, g10, g11, eps, dk):
+    """Gradient (lx, ly) of the sector polynomial of variable v through cells pa, pb (inverse
+    offset matrix g) and its unnormalised CWENO weight."""
+    d1 = qbar[pa, v] - q0
+    d2 = qbar[pb, v] - q0
+    lx = g00 * d1 + g01 * d2
+    ly = g10 * d1 + g11 * d2
+    return lx, ly, _w(lx * lx + ly * ly, eps, dk)
 
 
 @nb.njit(cache=True)
@@ -421,23 +443,10 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
         qb = qbar[i, 1]
         qc = qbar[i, 2]
         if deg > 0 and npair > 0:
-            flat = True
-            for s in range(S):
-                j = stencil[i, s]
-                if j < 0:
-                    break
-                if qbar[j, 0] != qa or qbar[j, 1] != qb or qbar[j, 2] != qc:
-                    flat = False
-                    break
-            if flat:
-                for kp in range(npair):
-                    a_ = pairs[i, kp, 0]
-                    b_ = pairs[i, kp, 1]
-                    if (qbar[a_, 0] != qa or qbar[a_, 1] != qb or qbar[a_, 2] != qc
-                            or qbar[b_, 0] != qa or qbar[b_, 1] != qb or qbar[b_, 2] != qc):
-                        flat = False
-                if flat:
-                    deg = 0
+            j = stencil[i, 0]  # (a quick look at one neighbour rejects most cells)
+            if (qbar[j, 0] == qa and qbar[j, 1] == qb and qbar[j, 2] == qc
+                    and _flat(qbar, i, stencil, pairs, npair)):
+                deg = 0
         if deg == 0 or npair == 0:
             for p in range(6):
                 k = slot[i, p]
@@ -505,36 +514,12 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
             g01 = pair_inv[i, kp, 0, 1]
             g10 = pair_inv[i, kp, 1, 0]
             g11 = pair_inv[i, kp, 1, 1]
-            d1 = qbar[pa, 0] - qa
-            d2 = qbar[pb, 0] - qa
-            lx = g00 * d1 + g01 * d2
-            ly = g10 * d1 + g11 * d2
-            w = _w(lx * lx + ly * ly, ea, dk)
-            ta += w
-            sax += w * lx
-            say += w * ly
-            uax += lx
-            uay += ly
-            d1 = qbar[pa, 1] - qb
-            d2 = qbar[pb, 1] - qb
-            lx = g00 * d1 + g01 * d2
-            ly = g10 * d1 + g11 * d2
-            w = _w(lx * lx + ly * ly, eb, dk)
-            tb += w
-            sbx += w * lx
-            sby += w * ly
-            ubx += lx
-            uby += ly
-            d1 = qbar[pa, 2] - qc
-            d2 = qbar[pb, 2] - qc
-            lx = g00 * d1 + g01 * d2
-            ly = g10 * d1 + g11 * d2
-            w = _w(lx * lx + ly * ly, ec, dk)
-            tc += w
-            scx += w * lx
-            scy += w * ly
-            ucx += lx
-            ucy += ly
+            lx, ly, w = _sector(qbar, pa, pb, 0, qa, g00, g01, g10, g11, ea, dk)
+            ta, sax, say, uax, uay = ta + w, sax + w * lx, say + w * ly, uax + lx, uay + ly
+            lx, ly, w = _sector(qbar, pa, pb, 1, qb, g00, g01, g10, g11, eb, dk)
+            tb, sbx, sby, ubx, uby = tb + w, sbx + w * lx, sby + w * ly, ubx + lx, uby + ly
+            lx, ly, w = _sector(qbar, pa, pb, 2, qc, g00, g01, g10, g11, ec, dk)
+            tc, scx, scy, ucx, ucy = tc + w, scx + w * lx, scy + w * ly, ucx + lx, ucy + ly
         # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
         ia = 1.0 / ta
         ib = 1.0 / tb
@@ -561,11 +546,7 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
         C3 = fc * c3
         C4 = fc * c4
         for p in range(9):
-            x = point_xy[i, p, 0]
-            y = point_xy[i, p, 1]
-            bxx = x * x - mxx
-            bxy = x * y - mxy
-            byy = y * y - myy
+            x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
             va = qa + A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy
             vb = qb + B0 * x + B1 * y + B2 * bxx + B3 * bxy + B4 * byy
             vc = qc + C0 * x + C1 * y + C2 * bxx + C3 * bxy + C4 * byy
