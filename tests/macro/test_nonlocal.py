@@ -264,3 +264,18 @@ def test_split_friction_run_matches_friction_in_the_stages():
     print(f"\nsplit (cfl 0.7, {na} steps) vs in-stage friction (cfl 0.2, {nb} steps): "
           f"outflow {outa:.4f} / {outb:.4f} ped, density L1 difference {rel:.2e}")
     assert rel < 0.01
+
+
+def test_split_friction_is_a_run_parameter():
+    """`--param split_friction=0` reaches mac1 and brings back cfl 0.4 (friction in the stages)."""
+    from pedmesh import StartArea
+    from pedmesh.run.models import MODELS
+
+    room = Room([(0, 0), (12, 0), (12, 8), (0, 8)], exits=[Exit("e", [(12, 3), (12, 5)])],
+                start_areas=[StartArea("crowd", [(2, 2), (6, 2), (6, 6), (2, 6)], density=2.0)])
+    mesh = room.mesh(max_area=0.5)
+    for value, split, cfl in ((0.0, False, 0.4), (1.0, True, 0.7)):
+        run = MODELS["mac1"](room, mesh, {"split_friction": value})
+        assert run.solver.model.has_split_source is split
+        assert run.solver.cfl == cfl
+        assert run.parameters()["split_friction"] is split
