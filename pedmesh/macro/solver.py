@@ -236,20 +236,21 @@ class FVSolver:
         self._e_int_y = np.ascontiguousarray(self.e_int[..., 1].ravel())
 
     def _fluxes(self, t: float, F: np.ndarray, constant: bool = False,
-                alpha: np.ndarray | None = None) -> None:
+                alpha: np.ndarray | None = None, skip_interior: bool = False) -> None:
         """Edge fluxes (integrated over the edges, L -> R) from the edge states.
         ``constant``: first-order states, the same at both Gauss points; models whose flux
         does not depend on the direction then evaluate one point per edge (the ``*1``
         arrays: ``qL1``, ``nx1``, ...), the others both (``qL``, ``nx``, ...).
         ``alpha`` (n_edges,): receives each edge's largest wave speed [m/s] (at walls and
-        exits that of the inner state, as in :meth:`max_dt`)."""
+        exits that of the inner state, as in :meth:`max_dt`). ``skip_interior``: the
+        interior edges are done elsewhere (:meth:`_low_order`)."""
         model = self.model
         nv = model.n_vars
         one = self._one_point_low_order(constant)
         sfx = "1" if one else ""
         for name, c in self._cat.items():
             idx = c["idx"]
-            if len(idx) == 0:
+            if len(idx) == 0 or (skip_interior and name == "interior"):
                 continue
             qL = c["qL" + sfx].reshape(-1, nv)
             geo = (c["nx" + sfx], c["ny" + sfx], c["ex" + sfx], c["ey" + sfx])
@@ -274,12 +275,20 @@ class FVSolver:
 
     def _low_order(self, Q: np.ndarray, t: float, F: np.ndarray, alpha: np.ndarray) -> None:
         """First-order edge fluxes ``F`` of cell averages ``Q`` and every edge's largest wave
-        speed ``alpha`` [m/s]."""
-        sfx = "1" if self._one_point_low_order(True) else ""
-        for c in self._cat.values():
-            K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
+        speed ``alpha`` [m/s]. With one point per edge a model's ``cell_flux`` reads the
+        interior edges' cell averages in place (no gathered edge states)."""
+        one = self._one_point_low_order(True)
+        sfx = "1" if one else ""
+        fused = one and self.model.cell_flux is not None
+        for name, c in self._cat.items():
+            if not (fused and name == "interior"):
+                K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
         alpha[:] = 0.0
-        self._fluxes(t, F, constant=True, alpha=alpha)
+        self._fluxes(t, F, constant=True, alpha=alpha, skip_interior=fused)
+        if fused:
+            c = self._cat["interior"]
+            self.model.cell_flux(Q, self.e2t, c["idx"], c["nx1"], c["ny1"], self.lengths, F,
+                                 alpha)
 
     def _one_point_low_order(self, constant: bool) -> bool:
         return (constant and not self.model.direction_dependent_flux

@@ -177,23 +177,45 @@ def _prim(r, mx, my, rho_cut, umax):
     return r, ux, uy
 
 
+@nb.njit(cache=True, inline="always")
+def _rusanov_point(qL, qR, nx, ny, kind, prm, rho_cut, umax):
+    """Rusanov flux (3 components) and wave speed between the states (3,) ``qL``, ``qR``
+    across the unit normal (nx, ny)."""
+    rl, ulx, uly = _prim(qL[0], qL[1], qL[2], rho_cut, umax)
+    rr, urx, ury = _prim(qR[0], qR[1], qR[2], rho_cut, umax)
+    pl, cl = _p_c(kind, prm, rl)
+    pr, cr = _p_c(kind, prm, rr)
+    unl = ulx * nx + uly * ny
+    unr = urx * nx + ury * ny
+    a = max(abs(unl) + cl, abs(unr) + cr)
+    f0 = 0.5 * (rl * unl + rr * unr) - 0.5 * a * (rr - rl)
+    f1 = 0.5 * (rl * ulx * unl + pl * nx + rr * urx * unr + pr * nx) - 0.5 * a * (rr * urx - rl * ulx)
+    f2 = 0.5 * (rl * uly * unl + pl * ny + rr * ury * unr + pr * ny) - 0.5 * a * (rr * ury - rl * uly)
+    return f0, f1, f2, a
+
+
 @nb.njit(cache=True)
 def rusanov(qL, qR, nx, ny, kind, prm, rho_cut, umax, F, alpha):
     """Rusanov flux of the barotropic system at k points (states (k, 3))."""
     for k in range(qL.shape[0]):
-        rl, ulx, uly = _prim(qL[k, 0], qL[k, 1], qL[k, 2], rho_cut, umax)
-        rr, urx, ury = _prim(qR[k, 0], qR[k, 1], qR[k, 2], rho_cut, umax)
-        pl, cl = _p_c(kind, prm, rl)
-        pr, cr = _p_c(kind, prm, rr)
-        unl = ulx * nx[k] + uly * ny[k]
-        unr = urx * nx[k] + ury * ny[k]
-        a = max(abs(unl) + cl, abs(unr) + cr)
-        alpha[k] = a
-        F[k, 0] = 0.5 * (rl * unl + rr * unr) - 0.5 * a * (rr - rl)
-        F[k, 1] = 0.5 * (rl * ulx * unl + pl * nx[k] + rr * urx * unr + pr * nx[k]) \
-            - 0.5 * a * (rr * urx - rl * ulx)
-        F[k, 2] = 0.5 * (rl * uly * unl + pl * ny[k] + rr * ury * unr + pr * ny[k]) \
-            - 0.5 * a * (rr * ury - rl * uly)
+        F[k, 0], F[k, 1], F[k, 2], alpha[k] = _rusanov_point(qL[k], qR[k], nx[k], ny[k], kind,
+                                                             prm, rho_cut, umax)
+
+
+@nb.njit(cache=True)
+def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, alpha):
+    """First-order Rusanov fluxes between the two cells of each of ``edges`` (interior),
+    integrated over the edge (``F[e] = l_e f``), and the wave speeds ``alpha[e]``: the cell
+    states are read in place instead of being gathered first."""
+    for k in range(edges.shape[0]):
+        e = edges[k]
+        f0, f1, f2, a = _rusanov_point(Q[e2t[e, 0]], Q[e2t[e, 1]], nx[k], ny[k], kind, prm,
+                                       rho_cut, umax)
+        w = lengths[e]
+        F[e, 0] = w * f0
+        F[e, 1] = w * f1
+        F[e, 2] = w * f2
+        alpha[e] = a
 
 
 @nb.njit(cache=True)
@@ -361,6 +383,12 @@ class BarotropicModel(MacroModel):
         a = np.empty(len(qL))
         rusanov(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F, a)
         return F, a
+
+    def cell_flux(self, Q, e2t, edges, nx, ny, lengths, F, alpha):
+        """First-order fluxes of interior ``edges`` between their cells' averages ``Q``,
+        integrated over the edges into ``F`` (n_edges, 3), wave speeds into ``alpha``."""
+        rusanov_cells(Q, e2t, edges, nx, ny, self.law.kind, self.law.params, self.rho_cut,
+                      self.u_max, lengths, F, alpha)
 
     def wall_flux(self, q, nx, ny, ex, ey):
         g = np.empty_like(q)

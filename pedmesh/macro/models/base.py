@@ -37,6 +37,12 @@ class MacroModel:
         (k,) used for it."""
         raise NotImplementedError
 
+    #: optional ``cell_flux(Q, e2t, edges, nx, ny, lengths, F, alpha)``: the first-order
+    #: fluxes of interior ``edges`` (one point per edge) read straight from the cell averages
+    #: ``Q`` and integrated over the edges (see BarotropicModel); None: the solver gathers
+    #: the cell states and calls :meth:`flux`
+    cell_flux = None
+
     def wall_flux(self, q, nx, ny, ex, ey):
         """Flux density (k, nv) through a wall with outward normal n (zero mass flux)."""
         raise NotImplementedError
