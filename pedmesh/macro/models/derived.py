@@ -51,9 +51,10 @@ class Mac1(BarotropicModel):
     The friction is stiff: it relaxes velocity differences between neighbouring cells at a
     rate up to ``sum_j tr(K_ij) rho_j``, beyond the CFL step's reach: on Example 2 at
     2 / 4 ped/m^2 the largest rate is 64 / 128 1/s with cells of h = 1.1 m and 116 / 232 1/s
-    with h = 0.56 m (the contact kernel is shorter than a cell, so the rate grows as 1/h). By default (``split_friction=1``) the solver applies it by Strang splitting: half
-    a step of friction alone before each SSP-RK3 step of the rest and half a step after,
-    each made of SSP-RK3 sub-steps with ``dt_sub * rate <= 1``. Every sub-step conserves
+    with h = 0.56 m (the contact kernel is shorter than a cell, so the rate grows as 1/h).
+    By default (``split_friction=1``) the solver applies it by Strang splitting: half a step
+    of friction alone before each SSP-RK3 step of the rest and half a step after, each made
+    of SSP-RK3 sub-steps with ``dt_sub * rate <= 1``. Every sub-step conserves
     momentum to round-off (the operator does) and, being within the stability interval of
     a dissipative symmetric operator, never increases the kinetic energy; the density is
     untouched. The CFL number is then the core's 0.7.
