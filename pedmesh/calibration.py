@@ -252,9 +252,13 @@ def measure_pressure(rho: float, params: SocialForceParams | None = None,
     n_relax = int(round(o.relax_time / o.dt))
     n_sample = int(round(o.sample_time / o.dt))
     every = max(1, int(round(o.sample_every / o.dt)))
+    from .run.driver import stop_requested
+
     per = []
     kin = []
     for r in range(o.replicas):
+        if stop_requested():  # Ctrl-C / SIGTERM under stop_on_signals: stop between replicas
+            raise KeyboardInterrupt
         rng = np.random.default_rng([o.seed, r, int(rho * 1000)])
         x = _initial(rng, o.n, L)
         v = np.zeros_like(x)

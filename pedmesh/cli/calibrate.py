@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from pathlib import Path
 
@@ -51,14 +50,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or table")
 
 
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
-
-
 def run(args: argparse.Namespace) -> int:
     from ..calibration import CalibrationOptions, calibrate, save_eos
     from ..errors import ParameterError
     from ..micro.params import SocialForceParams, parse_param_overrides, with_overrides
+    from ..run.driver import stop_on_signals
 
     overrides = parse_param_overrides(args.param)
     allowed = {"A", "B", "k", "kappa", "m", "r", "tau"}
@@ -81,16 +77,14 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.parent and not out.parent.exists():
         raise ParameterError(f"the directory of '{out}' does not exist")
-    old = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
-        cal = calibrate(params, options, progress=not args.quiet,
-                        on_row=lambda partial: save_eos(partial, out))
+        with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current replica
+            cal = calibrate(params, options, progress=not args.quiet,
+                            on_row=lambda partial: save_eos(partial, out))
     except KeyboardInterrupt:
         print(f"pedmesh: interrupted; the densities measured so far are in {out} "
               "(marked incomplete)", file=sys.stderr)
         return 130
-    finally:
-        signal.signal(signal.SIGTERM, old)
     save_eos(cal, out)
     if not args.quiet:
         print("  rho [ped/m^2]   p [ped/s^2]     +- s.e.    mean field g1 rho^2/2   ratio")

@@ -15,7 +15,7 @@ from ..errors import SimulationError
 from .models import get_model
 from .output import RunWriter
 
-__all__ = ["run_model", "RunInterrupted", "request_stop", "stop_on_signals"]
+__all__ = ["run_model", "RunInterrupted", "request_stop", "stop_requested", "stop_on_signals"]
 
 #: set by :func:`request_stop`; runs check it between steps
 _STOP = threading.Event()
@@ -32,6 +32,11 @@ def request_stop(signum: int | None = None, frame: Any = None) -> None:
     if _STOP.is_set():
         raise KeyboardInterrupt
     _STOP.set()
+
+
+def stop_requested() -> bool:
+    """Whether a stop was requested (long computations check it between their steps)."""
+    return _STOP.is_set()
 
 
 @contextmanager
@@ -69,7 +74,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     """
     from tqdm import tqdm
 
-    if _STOP.is_set():  # asked to stop before this run began (e.g. between compared models)
+    if stop_requested():  # asked to stop before this run began (e.g. between compared models)
         raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
         raise SimulationError(f"t_end must be a positive number of seconds, got {t_end!r}")
@@ -128,7 +133,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
         while not run.done and run.t < t_end - 1e-9:
             run.step()
             record()
-            if _STOP.is_set():
+            if stop_requested():
                 raise KeyboardInterrupt
             if run.t - last_bar >= 0.5 or run.done:
                 bar.update(round(min(run.t, t_end) - last_bar, 3))

@@ -165,6 +165,24 @@ def test_calibrate_small_and_reload(tmp_path):
         CalibrationOptions(densities=(1.0, 12.0), n=100)
 
 
+def test_calibration_stops_between_replicas_on_request():
+    """Under stop_on_signals (the CLI's Ctrl-C / SIGTERM handling) a stop request ends the
+    calibration at the next replica; the densities already measured were handed to on_row."""
+    from pedmesh.run.driver import request_stop, stop_on_signals
+
+    opts = CalibrationOptions(densities=(1.0, 3.0), n=120, replicas=2, relax_time=0.5,
+                              sample_time=0.5)
+    seen = []
+
+    def row(cal):
+        seen.append(len(cal["table"]))
+        request_stop()  # as if SIGTERM arrived while the first density was measured
+
+    with stop_on_signals(), pytest.raises(KeyboardInterrupt):
+        calibrate(options=opts, progress=False, on_row=row)
+    assert seen == [1]
+
+
 @pytest.fixture(scope="module")
 def corridor():
     room = Room([(0, 0), (12, 0), (12, 4), (0, 4)], exits=[Exit("door", [(12, 1), (12, 3)])],
