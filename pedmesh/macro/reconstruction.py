@@ -376,11 +376,11 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                 lin[kp, 1] = pair_inv[i, kp, 1, 0] * da + pair_inv[i, kp, 1, 1] * db
             eps = (eps_hat * qref[v] * h[i]) ** 2 + 1e-300
             b0 = _beta2(p0, p1, p2, p3, p4, mxx, mxy, myy)
-            al0 = D0 / (b0 + eps) ** 2
+            al0 = _w(b0, eps, D0)
             tot = al0
             for kp in range(npair):
                 bk = lin[kp, 0] ** 2 + lin[kp, 1] ** 2
-                wk[kp] = dk / (bk + eps) ** 2
+                wk[kp] = _w(bk, eps, dk)
                 tot += wk[kp]
             # P0 = (Popt - sum dk Pk)/d0; combined p = w0 P0 + sum wk Pk
             inv_tot = 1.0 / tot
