@@ -37,6 +37,7 @@ import numba as nb
 import numpy as np
 
 from ..mesh.trimesh import TriMesh
+from ._kernels import FAST
 
 __all__ = ["ReconstructionData", "build_reconstruction", "reconstruct", "GAUSS_S", "D0"]
 
@@ -95,7 +96,7 @@ def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
                      (eta * eta).mean(-1)], axis=-1)
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def _stencils(nbr, tri, vptr, vidx, out):
     """Central stencils: face neighbours, their face neighbours, and all vertex neighbours
     when that gives fewer than 8 cells (a rule that does not depend on cell numbering, so
@@ -276,13 +277,13 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     return data
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _beta2(a1, a2, a3, a4, a5, mxx, mxy, myy):
     return (a1 * a1 + a2 * a2 + (4 * a3 * a3 + a4 * a4) * mxx + (a4 * a4 + 4 * a5 * a5) * myy
             + 4 * a4 * (a3 + a5) * mxy + 4 * a3 * a3 + a4 * a4 + 4 * a5 * a5)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _basis(point_xy, i, p, mxx, mxy, myy):
     """The mean-free basis xi, eta, xi^2 - <xi^2>, xi eta - <xi eta>, eta^2 - <eta^2> at
     point p of cell i."""
@@ -291,7 +292,7 @@ def _basis(point_xy, i, p, mxx, mxy, myy):
     return x, y, x * x - mxx, x * y - mxy, y * y - myy
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _same_rows(qbar, i, j):
     """Whether cells i and j hold the same values of every variable."""
     for v in range(qbar.shape[1]):
@@ -300,7 +301,7 @@ def _same_rows(qbar, i, j):
     return True
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _flat(qbar, i, stencil, pairs, npair):
     """Whether every cell of the central stencil and the sector pairs of cell i holds the
     values of cell i (constant data, e.g. the empty parts of a room: first order is exact)."""
@@ -316,7 +317,7 @@ def _flat(qbar, i, stencil, pairs, npair):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
                 eps_hat, qref, point_xy, out_edge, slot, out_int):
     """Point values of the reconstruction of cell averages ``qbar`` (m, nv): the value at
@@ -409,14 +410,14 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                     out_int[i, p - 6, v] = val
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _w(b, eps, d):
     """CWENO nonlinear weight d / (beta + eps)^2."""
     x = b + eps
     return d / (x * x)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _sector(qbar, pa, pb, v, q0, g00, g01, g10, g11, eps, dk):
     """Gradient (lx, ly) of the sector polynomial of variable v through cells pa, pb (inverse
     offset matrix g) and its unnormalised CWENO weight."""
@@ -427,7 +428,7 @@ def _sector(qbar, pa, pb, v, q0, g00, g01, g10, g11, eps, dk):
     return lx, ly, _w(lx * lx + ly * ly, eps, dk)
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
                   eps_hat, qref, point_xy, out_edge, slot, out_int):
     """:func:`reconstruct` for exactly 3 variables (density and momentum), each quantity held

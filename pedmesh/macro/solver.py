@@ -207,7 +207,7 @@ class FVSolver:
         self._vlo = np.zeros((m, 2))
         self._vhi = np.zeros((m, 2))
         self._vact = np.zeros(m, np.bool_)
-        self._fct_work = (np.empty((m, nv)), np.empty((m, 5)), np.empty((m, 5)))
+        self._fct_work = (np.empty((nv, m)), np.empty((5, m)), np.empty((5, m)))
         self._sample_directions()
 
     def _edge_slots(self) -> np.ndarray:
@@ -255,6 +255,10 @@ class FVSolver:
             qL = c["qL" + sfx].reshape(-1, nv)
             geo = (c["nx" + sfx], c["ny" + sfx], c["ex" + sfx], c["ey" + sfx])
             a = None
+            if (name == "interior" and not one and alpha is None and model.edge_flux is not None
+                    and not model.direction_dependent_flux):
+                model.edge_flux(c["qL"], c["qR"], c["nx1"], c["ny1"], idx, self.lengths, F)
+                continue
             if name == "interior":
                 Fp, a = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
             elif self.boundary_state is not None:  # (never with one point per edge)
@@ -306,8 +310,11 @@ class FVSolver:
         if opt.limiter:
             K.positivity_limit(Es, self._slot, Vi, Q, opt.rho_eps, model_rho_cut(model))
         F = self._F
-        self._fluxes(t, F)
-        if opt.limiter and opt.order > 1:
+        fct = opt.limiter and opt.order > 1
+        FH = self._Fb if fct else F  # the high-order fluxes
+        self._fluxes(t, FH)
+        dQ = np.empty_like(Q)
+        if fct:
             FL, alpha = self._FL, self._alpha
             self._low_order(Q, t, FL, alpha)
             # the flux limiter keeps rho >= 0 only if the first-order stage does: dt within
@@ -316,18 +323,19 @@ class FVSolver:
             dt_fe = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, 1.0)
             if dt > dt_fe:
                 raise StageTooLong(dt_fe)
-            FH = self._Fb
-            FH[:] = F
             use_vel = bool(getattr(model, "pressureless", False)) and nv == 3
             if use_vel:
                 K.velocity_bounds(Q, self.mesh.triangle_neighbors, model_rho_cut(model),
                                   self._vlo, self._vhi, self._vact)
             K.fct_blend(FH, FL, self.e2t, self.inv_areas, Q, dt, opt.rho_eps, F, self._theta,
-                        use_vel, self._vlo, self._vhi, self._vact, *self._fct_work)
-        dQ = np.empty_like(Q)
-        K.divergence(F, self.e2t, self.inv_areas, dQ)
-        S = model.source(Vi.reshape(-1, nv), self._e_int_x, self._e_int_y)
-        K.add_point_mean(np.ascontiguousarray(S), dQ)
+                        use_vel, self._vlo, self._vhi, self._vact, *self._fct_work, dQ)
+        else:
+            K.divergence(F, self.e2t, self.inv_areas, dQ)
+        if model.source_mean is not None:
+            model.source_mean(Vi, self._e_int_x, self._e_int_y, dQ)
+        else:
+            S = model.source(Vi.reshape(-1, nv), self._e_int_x, self._e_int_y)
+            K.add_point_mean(np.ascontiguousarray(S), dQ)
         C = model.cell_source(Q)
         if C is not None:
             dQ += C

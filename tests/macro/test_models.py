@@ -191,3 +191,84 @@ def test_fused_first_order_fluxes_equal_the_gathered_ones(name):
     s._low_order(Q, 0.0, F2, a2)
     np.testing.assert_array_equal(F1, F2)
     np.testing.assert_array_equal(a1, a2)
+
+
+def _rough_state(model, mesh, seed=11):
+    """Density with vacuum and near-vacuum cells, and fast momenta."""
+    rng = np.random.default_rng(seed)
+    rho = 4.0 * rng.random(mesh.n_triangles)
+    rho[rng.random(mesh.n_triangles) < 0.2] = 0.0
+    rho[rng.random(mesh.n_triangles) < 0.1] = 1e-4
+    Q = model.initial_state(rho)
+    Q[:, 1:] = rng.normal(scale=1.5, size=(mesh.n_triangles, 2)) * rho[:, None]
+    return Q
+
+
+@pytest.mark.parametrize("name", ["pw", "mac2-local", "eos"])
+def test_one_pass_fluxes_and_sources_equal_the_generic_path(name):
+    """Barotropic models integrate the high-order edge fluxes (``edge_flux``) and average
+    the interior-point sources (``source_mean``) in one pass each; the residual must be the
+    generic path's (point fluxes, then integration; point sources, then the mean) to
+    round-off."""
+    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
+    mesh = room.mesh(max_area=0.05)
+    model = macro_model(name)
+    s = FVSolver(mesh, model, FVOptions())
+    Q = _rough_state(model, mesh)
+    s.update_route(Q)
+    assert model.edge_flux is not None and model.source_mean is not None
+    d1, o1 = s.residual(Q, 0.0, 1e-4)
+    model.edge_flux = model.source_mean = None
+    d2, o2 = s.residual(Q, 0.0, 1e-4)
+    scale = np.abs(d2).max(axis=0)
+    assert np.all(scale > 0)
+    np.testing.assert_allclose(d1, d2, rtol=0, atol=1e-13 * scale.max())
+    np.testing.assert_allclose(o1, o2, rtol=1e-13)
+
+
+def test_one_pass_hooks_step_aside_for_a_subclass_with_its_own_flux_or_source():
+    from pedmesh.macro.models.barotropic import PayneWhitham
+
+    class Own(PayneWhitham):
+        def source(self, q, ex, ey):
+            return 2.0 * super().source(q, ex, ey)
+
+    class OwnFlux(PayneWhitham):
+        def flux(self, qL, qR, nx, ny, ex, ey):
+            return super().flux(qL, qR, nx, ny, ex, ey)
+
+    assert Own().source_mean is None and Own().edge_flux is not None
+    assert OwnFlux().edge_flux is None and OwnFlux().cell_flux is None
+    assert PayneWhitham().source_mean is not None
+
+
+def test_density_flux_limiter_equals_the_general_one():
+    """The density-only FCT (the common case) has a kernel of its own; it must give the
+    general kernel's fluxes, limiter factors and divergence (here: the velocity constraints
+    switched off in every cell), and the divergence must be that of its fluxes."""
+    from pedmesh.macro import _kernels as K
+
+    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
+    mesh = room.mesh(max_area=0.05)
+    model = macro_model("pw")
+    s = FVSolver(mesh, model, FVOptions())
+    Q = _rough_state(model, mesh)
+    s.update_route(Q)
+    s.residual(Q, 0.0, 1e-3)
+    s._fluxes(0.0, s._Fb)
+    s._low_order(Q, 0.0, s._FL, s._alpha)
+    dt = K.cfl_dt(s._alpha, s.lengths, s.e2t, s.areas, 0.9)
+    m = mesh.n_triangles
+    out = []
+    for use_vel in (False, True):
+        F, th, dQ = np.empty_like(s._Fb), np.empty(mesh.n_edges), np.empty_like(Q)
+        work = (np.empty((3, m)), np.empty((5, m)), np.empty((5, m)))
+        K.fct_blend(s._Fb, s._FL, s.e2t, s.inv_areas, Q, dt, 0.0, F, th, use_vel, s._vlo,
+                    s._vhi, np.zeros(m, np.bool_), *work, dQ)
+        out.append((F, th, dQ))
+    assert 0 < np.mean(out[0][1] < 1) < 0.9  # the limiter acts on some edges
+    for a, b in zip(out[0], out[1]):
+        np.testing.assert_array_equal(a, b)
+    div = np.empty_like(Q)
+    K.divergence(out[0][0], s.e2t, s.inv_areas, div)
+    np.testing.assert_allclose(out[0][2], div, rtol=0, atol=1e-13 * np.abs(div).max())

@@ -26,6 +26,7 @@ import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
+from .._kernels import FAST
 from .base import MacroModel, register_macro_model
 
 __all__ = ["BarotropicModel", "PressureLaw", "PayneWhitham"]
@@ -98,7 +99,7 @@ class PressureLaw:
         return c
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _p_c(kind, prm, rho):
     """Pressure (per unit mass, [m^2/s^2 ped/m^2]) and sound speed [m/s] at density rho."""
     if rho <= 0.0:
@@ -146,13 +147,13 @@ def _p_c(kind, prm, rho):
     return p, math.sqrt(max(dp, 0.0))
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def _p_c_vec(kind, prm, rho, p, c):
     for i in range(rho.shape[0]):
         p[i], c[i] = _p_c(kind, prm, rho[i])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _prim(r, mx, my, rho_cut, umax):
     """Desingularised velocity of a state (Kurganov-Petrova), capped at umax."""
     if r <= 0.0:
@@ -177,7 +178,7 @@ def _prim(r, mx, my, rho_cut, umax):
     return r, ux, uy
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _rusanov_point(qL, qR, nx, ny, kind, prm, rho_cut, umax):
     """Rusanov flux (3 components) and wave speed between the states (3,) ``qL``, ``qR``
     across the unit normal (nx, ny)."""
@@ -194,7 +195,7 @@ def _rusanov_point(qL, qR, nx, ny, kind, prm, rho_cut, umax):
     return f0, f1, f2, a
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def rusanov(qL, qR, nx, ny, kind, prm, rho_cut, umax, F, alpha):
     """Rusanov flux of the barotropic system at k points (states (k, 3))."""
     for k in range(qL.shape[0]):
@@ -202,7 +203,21 @@ def rusanov(qL, qR, nx, ny, kind, prm, rho_cut, umax, F, alpha):
                                                              prm, rho_cut, umax)
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
+def rusanov_edges(qL, qR, nx, ny, kind, prm, rho_cut, umax, edges, lengths, F):
+    """Rusanov fluxes at the 2 Gauss points of each of ``edges`` (states (k, 2, 3), unit
+    normals (k,)), integrated over the edge into ``F[e]`` (the 2-point Gauss rule)."""
+    for a in range(edges.shape[0]):
+        e = edges[a]
+        f0, f1, f2, _ = _rusanov_point(qL[a, 0], qR[a, 0], nx[a], ny[a], kind, prm, rho_cut, umax)
+        g0, g1, g2, _ = _rusanov_point(qL[a, 1], qR[a, 1], nx[a], ny[a], kind, prm, rho_cut, umax)
+        w = 0.5 * lengths[e]
+        F[e, 0] = w * (f0 + g0)
+        F[e, 1] = w * (f1 + g1)
+        F[e, 2] = w * (f2 + g2)
+
+
+@nb.njit(**FAST)
 def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, alpha):
     """First-order Rusanov fluxes between the two cells of each of ``edges`` (interior),
     integrated over the edge (``F[e] = l_e f``), and the wave speeds ``alpha[e]``: the cell
@@ -218,7 +233,7 @@ def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, a
         alpha[e] = a
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def mirror(q, nx, ny, out):
     """Mirror states: same density, normal velocity reversed."""
     for k in range(q.shape[0]):
@@ -228,7 +243,7 @@ def mirror(q, nx, ny, out):
         out[k, 2] = q[k, 2] - 2.0 * mn * ny[k]
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def transmissive(q, nx, ny, kind, prm, rho_cut, umax, F):
     """Physical flux of the interior state with u.n clipped to >= 0 (no re-entry)."""
     for k in range(q.shape[0]):
@@ -244,7 +259,7 @@ def transmissive(q, nx, ny, kind, prm, rho_cut, umax, F):
         F[k, 2] = r * uy * un + p * ny[k]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(**FAST, inline="always")
 def _h(kind, prm, rho, h_rho, h_val):
     """Riemann-invariant integral h(rho) = int_0^rho c(s)/s ds (isothermal: c0 ln rho, up to
     a constant, which cancels)."""
@@ -269,7 +284,7 @@ def _h(kind, prm, rho, h_rho, h_val):
     return h_val[lo] * (1 - w) + h_val[hi] * w
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
     """Exact Godunov flux of the Riemann problem between each state and vacuum (empty space
     beyond an exit), for a barotropic pressure: the left-moving rarefaction ends in vacuum,
@@ -328,18 +343,41 @@ def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
         F[k, 2] = m * (us * n1 + ty) + ps * n1
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST, inline="always")
+def _relax_point(q, ex, ey, U_f, beta, rho_cut, umax):
+    """tau times the relaxation rho (U_e(rho) e - u)/tau of the state (3,) ``q``."""
+    r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
+    ue = U_f * math.exp(-beta * r)
+    return r * (ue * ex - ux), r * (ue * ey - uy)
+
+
+@nb.njit(**FAST)
 def relaxation(q, ex, ey, U_f, beta, tau, rho_cut, umax, S):
     """rho (U_e(rho) e - u)/tau at k points."""
     for k in range(q.shape[0]):
-        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
-        ue = U_f * math.exp(-beta * r)
+        s1, s2 = _relax_point(q[k], ex[k], ey[k], U_f, beta, rho_cut, umax)
         S[k, 0] = 0.0
-        S[k, 1] = r * (ue * ex[k] - ux) / tau
-        S[k, 2] = r * (ue * ey[k] - uy) / tau
+        S[k, 1] = s1 / tau
+        S[k, 2] = s2 / tau
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
+def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ):
+    """dQ[i] += the mean of the relaxation at the 3 interior points of cell i (states
+    ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,))."""
+    c = 1.0 / (3.0 * tau)
+    for i in range(dQ.shape[0]):
+        s1 = s2 = 0.0
+        for p in range(3):
+            a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, beta, rho_cut,
+                                  umax)
+            s1 += a1
+            s2 += a2
+        dQ[i, 1] += c * s1
+        dQ[i, 2] += c * s2
+
+
+@nb.njit(**FAST)
 def velocities(q, rho_cut, umax, out):
     for k in range(q.shape[0]):
         r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
@@ -377,12 +415,30 @@ class BarotropicModel(MacroModel):
             ex.insert(0, default_exit)
         self.exit_conditions = tuple(ex)
         self._h_rho, self._h_val = law.h_table()
+        # the one-pass kernels compute this class's flux and relaxation: a subclass that
+        # changes either gets the solver's generic path
+        if type(self).flux is not BarotropicModel.flux:
+            self.cell_flux = self.edge_flux = None
+        if type(self).source is not BarotropicModel.source:
+            self.source_mean = None
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         F = np.empty_like(qL)
         a = np.empty(len(qL))
         rusanov(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F, a)
         return F, a
+
+    def edge_flux(self, qL, qR, nx, ny, edges, lengths, F):
+        """High-order fluxes of ``edges`` from the states (k, 2, 3) at their 2 Gauss points,
+        integrated over the edges into ``F`` (n_edges, 3); unit normals (k,) per edge."""
+        rusanov_edges(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut,
+                      self.u_max, edges, lengths, F)
+
+    def source_mean(self, Vi, ex, ey, dQ):
+        """Adds to ``dQ`` (m, 3) the mean of :meth:`source` at each cell's 3 interior points
+        (states ``Vi`` (m, 3, 3), directions (3 m,))."""
+        relaxation_mean(Vi, ex, ey, self.U_f, self.beta, self.tau, self.rho_cut, self.u_max,
+                        dQ)
 
     def cell_flux(self, Q, e2t, edges, nx, ny, lengths, F, alpha):
         """First-order fluxes of interior ``edges`` between their cells' averages ``Q``,

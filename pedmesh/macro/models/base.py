@@ -42,6 +42,11 @@ class MacroModel:
     #: ``Q`` and integrated over the edges (see BarotropicModel); None: the solver gathers
     #: the cell states and calls :meth:`flux`
     cell_flux = None
+    #: optional ``edge_flux(qL, qR, nx, ny, edges, lengths, F)``: :meth:`flux` at the 2 Gauss
+    #: points of interior ``edges`` (states (k, 2, nv), unit normals (k,) per edge), for
+    #: models whose flux does not depend on the direction, integrated over the edges into
+    #: ``F`` in one pass; None: the solver calls :meth:`flux` and integrates
+    edge_flux = None
 
     def wall_flux(self, q, nx, ny, ex, ey):
         """Flux density (k, nv) through a wall with outward normal n (zero mass flux)."""
@@ -54,6 +59,11 @@ class MacroModel:
     def source(self, q, ex, ey):
         """Source (k, nv) at interior quadrature points."""
         return np.zeros_like(q)
+
+    #: optional ``source_mean(Vi, ex, ey, dQ)``: adds the mean of :meth:`source` at the 3
+    #: interior points of every cell (states ``Vi`` (m, 3, nv), directions (3 m,)) to ``dQ``
+    #: in one pass; None: the solver calls :meth:`source` and averages
+    source_mean = None
 
     def bind(self, mesh) -> None:
         """Prepare mesh-dependent operators (called once by the solver)."""

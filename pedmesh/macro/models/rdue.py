@@ -17,12 +17,13 @@ import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
+from .._kernels import FAST
 from .base import MacroModel, register_macro_model
 
 __all__ = ["RDUE"]
 
 
-@nb.njit(cache=True)
+@nb.njit(**FAST)
 def _rusanov(qL, qR, en, U_f, beta, F, alpha):
     for k in range(qL.shape[0]):
         rl = max(qL[k, 0], 0.0)
