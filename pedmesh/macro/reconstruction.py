@@ -37,7 +37,7 @@ import numba as nb
 import numpy as np
 
 from ..mesh.trimesh import TriMesh
-from ._kernels import FAST
+from ._kernels import FAST, positivity_limit
 
 __all__ = ["ReconstructionData", "build_reconstruction", "reconstruct", "GAUSS_S", "D0"]
 
@@ -70,20 +70,33 @@ class ReconstructionData:
 
     def apply(self, qbar: np.ndarray, out_edge: np.ndarray, out_int: np.ndarray, *,
               order: int = 3, eps_hat: float = 0.1, qref: np.ndarray | None = None,
-              slot: np.ndarray | None = None) -> None:
+              slot: np.ndarray | None = None,
+              positivity: tuple[float, float] | None = None) -> None:
         """Point values of the reconstruction of cell averages ``qbar`` (m, nv): at the 6
         edge Gauss points into ``out_edge`` and at the 3 interior points into ``out_int``
         (m, 3, nv); see :func:`reconstruct`. ``out_edge`` is (m, 6, nv), or any array whose
         rows ``slot[i, p]`` receive point p of cell i (the solver writes the edge states in
-        the order its fluxes read them)."""
+        the order its fluxes read them).
+
+        ``positivity = (rho_eps, rho_cut)`` applies the Zhang-Shu limiter of
+        :func:`~pedmesh.macro._kernels.positivity_limit` to the result (variable 0 is the
+        density); the 3-variable kernel does it while it writes the points."""
         qref = np.ones(qbar.shape[1]) if qref is None else qref
         m, nv = qbar.shape
         if slot is None:
             slot = np.arange(6 * m).reshape(m, 6)
-        kernel = _reconstruct3 if nv == 3 else reconstruct
-        kernel(qbar, order, self.stencil, self.R, self.opt_degree, self.moments, self.pairs,
-               self.pair_inv, self.n_pairs, self.h, eps_hat, qref, self.point_xy,
-               out_edge.reshape(-1, nv), slot, out_int)
+        out_edge = out_edge.reshape(-1, nv)
+        args = (qbar, order, self.stencil, self.R, self.opt_degree, self.moments, self.pairs,
+                self.pair_inv, self.n_pairs, self.h, eps_hat, qref, self.point_xy, out_edge, slot,
+                out_int)
+        if nv == 3:
+            limit = positivity is not None
+            rho_eps, rho_cut = positivity if limit else (0.0, 0.0)
+            _reconstruct3(*args, limit, rho_eps, rho_cut)
+            return
+        reconstruct(*args)
+        if positivity is not None:
+            positivity_limit(out_edge, slot, out_int, qbar, *positivity)
 
 
 def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
@@ -430,10 +443,14 @@ def _sector(qbar, pa, pb, v, q0, g00, g01, g10, g11, eps, dk):
 
 @nb.njit(**FAST)
 def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
-                  eps_hat, qref, point_xy, out_edge, slot, out_int):
+                  eps_hat, qref, point_xy, out_edge, slot, out_int, limit, rho_eps, rho_cut):
     """:func:`reconstruct` for exactly 3 variables (density and momentum), each quantity held
     in scalars per variable: every stencil and sector row is read once for all three
-    variables, and the work arrays of the general kernel are gone (about 10 % faster)."""
+    variables, and the work arrays of the general kernel are gone (about 10 % faster).
+    With ``limit`` it applies :func:`~pedmesh.macro._kernels.positivity_limit` as it writes
+    the points (first order where the density is below ``rho_cut``; the density's
+    deviations scaled so that it is >= ``rho_eps`` at every point where the average
+    allows)."""
     m = qbar.shape[0]
     S = stencil.shape[1]
     inv_d0 = 1.0 / D0
@@ -443,6 +460,8 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
         qa = qbar[i, 0]
         qb = qbar[i, 1]
         qc = qbar[i, 2]
+        if limit and qa < rho_cut:
+            deg = 0
         if deg > 0 and npair > 0:
             j = stencil[i, 0]  # (a quick look at one neighbour rejects most cells)
             if (qbar[j, 0] == qa and qbar[j, 1] == qb and qbar[j, 2] == qc
@@ -546,9 +565,11 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
         C2 = fc * c2
         C3 = fc * c3
         C4 = fc * c4
+        mn = qa  # the density's smallest point value
         for p in range(9):
             x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
             va = qa + A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy
+            mn = min(mn, va)
             vb = qb + B0 * x + B1 * y + B2 * bxx + B3 * bxy + B4 * byy
             vc = qc + C0 * x + C1 * y + C2 * bxx + C3 * bxy + C4 * byy
             if p < 6:
@@ -560,3 +581,13 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
                 out_int[i, p - 6, 0] = va
                 out_int[i, p - 6, 1] = vb
                 out_int[i, p - 6, 2] = vc
+        if limit and mn < rho_eps:  # Zhang-Shu: scale the density's deviations (rare)
+            th = (qa - rho_eps) / (qa - mn) if qa > mn else 0.0
+            th = min(max(th, 0.0), 1.0)
+            for p in range(9):
+                x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
+                va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
+                if p < 6:
+                    out_edge[slot[i, p], 0] = va
+                else:
+                    out_int[i, p - 6, 0] = va

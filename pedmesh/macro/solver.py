@@ -306,9 +306,8 @@ class FVSolver:
         self._buffers(nv)
         Es, Vi = self._Es.reshape(-1, nv), self._Vi
         R.apply(Q, Es, Vi, order=opt.order, eps_hat=opt.eps_hat, qref=self.qref,
-                slot=self._slot)
-        if opt.limiter:
-            K.positivity_limit(Es, self._slot, Vi, Q, opt.rho_eps, model_rho_cut(model))
+                slot=self._slot,
+                positivity=(opt.rho_eps, model_rho_cut(model)) if opt.limiter else None)
         F = self._F
         fct = opt.limiter and opt.order > 1
         FH = self._Fb if fct else F  # the high-order fluxes
