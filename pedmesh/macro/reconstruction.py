@@ -347,8 +347,6 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
     S = stencil.shape[1]
     q0 = np.zeros(nv)
     coef = np.zeros((nv, 5))
-    lin = np.zeros((MAX_PAIRS, 2))
-    wk = np.zeros(MAX_PAIRS)
     inv_d0 = 1.0 / D0
     for i in range(m):
         deg = opt_degree[i] if order >= 2 else 0
@@ -383,32 +381,22 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
                 p4 += R[i, s, 4] * d
             if order == 2:
                 p2 = p3 = p4 = 0.0
-            for kp in range(npair):
-                da = qbar[pairs[i, kp, 0], v] - q0[v]
-                db = qbar[pairs[i, kp, 1], v] - q0[v]
-                lin[kp, 0] = pair_inv[i, kp, 0, 0] * da + pair_inv[i, kp, 0, 1] * db
-                lin[kp, 1] = pair_inv[i, kp, 1, 0] * da + pair_inv[i, kp, 1, 1] * db
             eps = (eps_hat * qref[v] * h[i]) ** 2 + 1e-300
-            b0 = _beta2(p0, p1, p2, p3, p4, mxx, mxy, myy)
-            al0 = _w(b0, eps, D0)
-            tot = al0
+            w0 = _w(_beta2(p0, p1, p2, p3, p4, mxx, mxy, myy), eps, D0)
+            t = w0
+            # sum_k w_k lin_k (s.) and sum_k lin_k (u.) of the sector gradients
+            sx = sy = ux = uy = 0.0
             for kp in range(npair):
-                bk = lin[kp, 0] ** 2 + lin[kp, 1] ** 2
-                wk[kp] = _w(bk, eps, dk)
-                tot += wk[kp]
-            # P0 = (Popt - sum dk Pk)/d0; combined p = w0 P0 + sum wk Pk
-            inv_tot = 1.0 / tot
-            w0 = al0 * inv_tot
-            f0 = w0 * inv_d0
-            a0 = f0 * p0
-            a1 = f0 * p1
-            c0 = w0 * dk * inv_d0
-            for kp in range(npair):
-                c = wk[kp] * inv_tot - c0
-                a0 += c * lin[kp, 0]
-                a1 += c * lin[kp, 1]
-            coef[v, 0] = a0
-            coef[v, 1] = a1
+                lx, ly, w = _sector(qbar, pairs[i, kp, 0], pairs[i, kp, 1], v, q0[v],
+                                    pair_inv[i, kp, 0, 0], pair_inv[i, kp, 0, 1],
+                                    pair_inv[i, kp, 1, 0], pair_inv[i, kp, 1, 1], eps, dk)
+                t, sx, sy, ux, uy = t + w, sx + w * lx, sy + w * ly, ux + lx, uy + ly
+            # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
+            it = 1.0 / t
+            f0 = w0 * it * inv_d0
+            k0 = f0 * dk
+            coef[v, 0] = f0 * p0 + sx * it - k0 * ux
+            coef[v, 1] = f0 * p1 + sy * it - k0 * uy
             coef[v, 2] = f0 * p2
             coef[v, 3] = f0 * p3
             coef[v, 4] = f0 * p4

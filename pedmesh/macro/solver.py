@@ -256,8 +256,9 @@ class FVSolver:
             geo = (c["nx" + sfx], c["ny" + sfx], c["ex" + sfx], c["ey" + sfx])
             a = None
             if (name == "interior" and not one and alpha is None and model.edge_flux is not None
-                    and not model.direction_dependent_flux):
-                model.edge_flux(c["qL"], c["qR"], c["nx1"], c["ny1"], idx, self.lengths, F)
+                    and self.boundary_state is None):
+                model.edge_flux(c["qL"], c["qR"], c["nx1"], c["ny1"], c["ex"], c["ey"], idx,
+                                self.lengths, F)
                 continue
             if name == "interior":
                 Fp, a = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
@@ -279,11 +280,11 @@ class FVSolver:
 
     def _low_order(self, Q: np.ndarray, t: float, F: np.ndarray, alpha: np.ndarray) -> None:
         """First-order edge fluxes ``F`` of cell averages ``Q`` and every edge's largest wave
-        speed ``alpha`` [m/s]. With one point per edge a model's ``cell_flux`` reads the
-        interior edges' cell averages in place (no gathered edge states)."""
+        speed ``alpha`` [m/s]. A model's ``cell_flux`` reads the interior edges' cell
+        averages in place (no gathered edge states)."""
         one = self._one_point_low_order(True)
         sfx = "1" if one else ""
-        fused = one and self.model.cell_flux is not None
+        fused = self.model.cell_flux is not None and self.boundary_state is None
         for name, c in self._cat.items():
             if not (fused and name == "interior"):
                 K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
@@ -291,8 +292,8 @@ class FVSolver:
         self._fluxes(t, F, constant=True, alpha=alpha, skip_interior=fused)
         if fused:
             c = self._cat["interior"]
-            self.model.cell_flux(Q, self.e2t, c["idx"], c["nx1"], c["ny1"], self.lengths, F,
-                                 alpha)
+            self.model.cell_flux(Q, self.e2t, c["idx"], c["nx1"], c["ny1"], c["ex"], c["ey"],
+                                 self.lengths, F, alpha)
 
     def _one_point_low_order(self, constant: bool) -> bool:
         return (constant and not self.model.direction_dependent_flux

@@ -428,9 +428,10 @@ class BarotropicModel(MacroModel):
         rusanov(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F, a)
         return F, a
 
-    def edge_flux(self, qL, qR, nx, ny, edges, lengths, F):
+    def edge_flux(self, qL, qR, nx, ny, ex, ey, edges, lengths, F):
         """High-order fluxes of ``edges`` from the states (k, 2, 3) at their 2 Gauss points,
-        integrated over the edges into ``F`` (n_edges, 3); unit normals (k,) per edge."""
+        integrated over the edges into ``F`` (n_edges, 3); unit normals (k,) per edge (the
+        flux does not depend on the direction ``ex``, ``ey``)."""
         rusanov_edges(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut,
                       self.u_max, edges, lengths, F)
 
@@ -440,9 +441,10 @@ class BarotropicModel(MacroModel):
         relaxation_mean(Vi, ex, ey, self.U_f, self.beta, self.tau, self.rho_cut, self.u_max,
                         dQ)
 
-    def cell_flux(self, Q, e2t, edges, nx, ny, lengths, F, alpha):
+    def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha):
         """First-order fluxes of interior ``edges`` between their cells' averages ``Q``,
-        integrated over the edges into ``F`` (n_edges, 3), wave speeds into ``alpha``."""
+        integrated over the edges into ``F`` (n_edges, 3), wave speeds into ``alpha`` (one
+        point per edge: the flux does not depend on the direction)."""
         rusanov_cells(Q, e2t, edges, nx, ny, self.law.kind, self.law.params, self.rho_cut,
                       self.u_max, lengths, F, alpha)
 

@@ -37,15 +37,16 @@ class MacroModel:
         (k,) used for it."""
         raise NotImplementedError
 
-    #: optional ``cell_flux(Q, e2t, edges, nx, ny, lengths, F, alpha)``: the first-order
-    #: fluxes of interior ``edges`` (one point per edge) read straight from the cell averages
-    #: ``Q`` and integrated over the edges (see BarotropicModel); None: the solver gathers
-    #: the cell states and calls :meth:`flux`
+    #: optional ``cell_flux(Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha)``: the
+    #: first-order fluxes of interior ``edges`` read straight from the cell averages ``Q``,
+    #: integrated over the edges into ``F`` (n_edges, nv), and each edge's largest wave speed
+    #: into ``alpha``; unit normals (k,) per edge, directions (2 k,) at the 2 Gauss points of
+    #: each edge. None: the solver gathers the cell states and calls :meth:`flux`
     cell_flux = None
-    #: optional ``edge_flux(qL, qR, nx, ny, edges, lengths, F)``: :meth:`flux` at the 2 Gauss
-    #: points of interior ``edges`` (states (k, 2, nv), unit normals (k,) per edge), for
-    #: models whose flux does not depend on the direction, integrated over the edges into
-    #: ``F`` in one pass; None: the solver calls :meth:`flux` and integrates
+    #: optional ``edge_flux(qL, qR, nx, ny, ex, ey, edges, lengths, F)``: :meth:`flux` at
+    #: the 2 Gauss points of interior ``edges`` (states (k, 2, nv), unit normals (k,) per
+    #: edge, directions (2 k,) per point), integrated over the edges into ``F`` in one pass;
+    #: None: the solver calls :meth:`flux` and integrates
     edge_flux = None
 
     def wall_flux(self, q, nx, ny, ex, ey):

@@ -23,18 +23,60 @@ from .base import MacroModel, register_macro_model
 __all__ = ["RDUE"]
 
 
+@nb.njit(**FAST, inline="always")
+def _f_df(r, U_f, beta):
+    """f(rho) = rho U_e(rho) and |f'(rho)| at rho = max(r, 0)."""
+    r = max(r, 0.0)
+    e = math.exp(-beta * r)
+    return r, r * U_f * e, abs(U_f * (1 - beta * r) * e)
+
+
+@nb.njit(**FAST, inline="always")
+def _rusanov_en(rl, fl, dl, rr, fr, dr, en):
+    """Rusanov flux and wave speed across a normal with e.n = ``en``, from the densities,
+    fluxes and |f'| of both sides (see :func:`_f_df`)."""
+    a = max(dl, dr) * abs(en)
+    return 0.5 * (fl + fr) * en - 0.5 * a * (rr - rl), a
+
+
 @nb.njit(**FAST)
 def _rusanov(qL, qR, en, U_f, beta, F, alpha):
     for k in range(qL.shape[0]):
-        rl = max(qL[k, 0], 0.0)
-        rr = max(qR[k, 0], 0.0)
-        el = math.exp(-beta * rl)
-        er = math.exp(-beta * rr)
-        fl = rl * U_f * el
-        fr = rr * U_f * er
-        a = max(abs(U_f * (1 - beta * rl) * el), abs(U_f * (1 - beta * rr) * er)) * abs(en[k])
-        alpha[k] = a
-        F[k, 0] = 0.5 * (fl + fr) * en[k] - 0.5 * a * (rr - rl)
+        rl, fl, dl = _f_df(qL[k, 0], U_f, beta)
+        rr, fr, dr = _f_df(qR[k, 0], U_f, beta)
+        F[k, 0], alpha[k] = _rusanov_en(rl, fl, dl, rr, fr, dr, en[k])
+
+
+@nb.njit(**FAST)
+def _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, U_f, beta, F):
+    """Rusanov fluxes at the 2 Gauss points of each of ``edges`` (states (k, 2, 1), unit
+    normals (k,), directions (2 k,)), integrated over the edge into ``F[e]``."""
+    for a in range(edges.shape[0]):
+        e = edges[a]
+        s = 0.0
+        for g in range(2):
+            rl, fl, dl = _f_df(qL[a, g, 0], U_f, beta)
+            rr, fr, dr = _f_df(qR[a, g, 0], U_f, beta)
+            en = ex[2 * a + g] * nx[a] + ey[2 * a + g] * ny[a]
+            f, _ = _rusanov_en(rl, fl, dl, rr, fr, dr, en)
+            s += f
+        F[e, 0] = 0.5 * lengths[e] * s
+
+
+@nb.njit(**FAST)
+def _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, U_f, beta, F, alpha):
+    """First-order fluxes of interior ``edges`` from their two cells' averages (read in
+    place; f and f' once per edge, the direction at both Gauss points), integrated over the
+    edge into ``F[e]``, and the larger wave speed of the two points into ``alpha[e]``."""
+    for a in range(edges.shape[0]):
+        e = edges[a]
+        rl, fl, dl = _f_df(Q[e2t[e, 0], 0], U_f, beta)
+        rr, fr, dr = _f_df(Q[e2t[e, 1], 0], U_f, beta)
+        f0, a0 = _rusanov_en(rl, fl, dl, rr, fr, dr, ex[2 * a] * nx[a] + ey[2 * a] * ny[a])
+        f1, a1 = _rusanov_en(rl, fl, dl, rr, fr, dr,
+                             ex[2 * a + 1] * nx[a] + ey[2 * a + 1] * ny[a])
+        F[e, 0] = 0.5 * lengths[e] * (f0 + f1)
+        alpha[e] = max(a0, a1)
 
 
 class RDUE(MacroModel):
@@ -58,6 +100,16 @@ class RDUE(MacroModel):
         a = np.empty(len(qL))
         _rusanov(qL, qR, ex * nx + ey * ny, self.U_f, self.beta, F, a)
         return F, a
+
+    def edge_flux(self, qL, qR, nx, ny, ex, ey, edges, lengths, F):
+        """:meth:`flux` at the 2 Gauss points of ``edges``, integrated into ``F`` in one pass
+        (see :class:`~pedmesh.macro.models.base.MacroModel`)."""
+        _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, self.U_f, self.beta, F)
+
+    def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha):
+        """First-order fluxes of interior ``edges`` from the cell averages ``Q`` in one pass
+        (see :class:`~pedmesh.macro.models.base.MacroModel`)."""
+        _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, self.U_f, self.beta, F, alpha)
 
     def wall_flux(self, q, nx, ny, ex, ey):
         return np.zeros_like(q)
