@@ -194,14 +194,7 @@ def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vh
                 if sgn * _constraint_dot(c, i, FH, FL, e, vlo, vhi) > 0.0 and R_[c, i] < th:
                     th = R_[c, i]
         theta[e] = th
-        L = e2t[e, 0]
-        R = e2t[e, 1]
-        for v in range(nv):
-            f = FL[e, v] + th * (FH[e, v] - FL[e, v])
-            F[e, v] = f
-            dQ[L, v] -= f * inv_areas[L]
-            if R >= 0:
-                dQ[R, v] += f * inv_areas[R]
+        _blend_edge(e, e2t[e, 0], e2t[e, 1], th, FH, FL, F, inv_areas, dQ)
 
 
 @nb.njit(**FAST)
@@ -245,12 +238,19 @@ def _fct_density(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R_, dQ
         elif d < 0.0 and R >= 0:
             th = R_[R]
         theta[e] = th
-        for v in range(nv):
-            f = FL[e, v] + th * (FH[e, v] - FL[e, v])
-            F[e, v] = f
-            dQ[L, v] -= f * inv_areas[L]
-            if R >= 0:
-                dQ[R, v] += f * inv_areas[R]
+        _blend_edge(e, L, R, th, FH, FL, F, inv_areas, dQ)
+
+
+@nb.njit(**FAST, inline="always")
+def _blend_edge(e, L, R, th, FH, FL, F, inv_areas, dQ):
+    """F[e] = FL[e] + th (FH[e] - FL[e]), and its divergence into dQ of cells L and R (R < 0:
+    a boundary edge)."""
+    for v in range(F.shape[1]):
+        f = FL[e, v] + th * (FH[e, v] - FL[e, v])
+        F[e, v] = f
+        dQ[L, v] -= f * inv_areas[L]
+        if R >= 0:
+            dQ[R, v] += f * inv_areas[R]
 
 
 @nb.njit(**FAST, inline="always")
