@@ -250,6 +250,15 @@ def test_one_pass_hooks_step_aside_for_a_subclass_with_its_own_flux_or_source():
     assert OwnFlux().edge_flux is None and OwnFlux().cell_flux is None
     assert PayneWhitham().source_mean is not None
 
+    from pedmesh.macro.models.rdue import RDUE
+
+    class OwnRDUE(RDUE):
+        def flux(self, qL, qR, nx, ny, ex, ey):
+            return super().flux(qL, qR, nx, ny, ex, ey)
+
+    assert OwnRDUE().edge_flux is None and OwnRDUE().cell_flux is None
+    assert RDUE().edge_flux is not None and RDUE().cell_flux is not None
+
 
 def test_density_flux_limiter_equals_the_general_one():
     """The density-only FCT (the common case) has a kernel of its own; it must give the
