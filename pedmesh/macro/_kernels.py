@@ -14,6 +14,15 @@ import numpy as np
 FAST = dict(cache=True, error_model="numpy", fastmath={"contract"})
 
 
+@nb.njit(**FAST, inline="always")
+def zhang_shu_theta(r, mn, rho_eps):
+    """Zhang-Shu factor in [0, 1] that scales a cell's point densities about its average
+    ``r`` so that the smallest, ``mn``, becomes ``rho_eps`` (0 if the average is not above
+    the minimum)."""
+    th = (r - rho_eps) / (r - mn) if r > mn else 0.0
+    return min(max(th, 0.0), 1.0)
+
+
 @nb.njit(**FAST)
 def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut):
     """Zhang-Shu scaling of the density at the 6 edge points (rows ``slot[i, :]`` of ``Ve``
@@ -36,8 +45,7 @@ def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut):
         for p in range(6):
             mn = min(mn, Ve[slot[i, p], 0])
         if mn < rho_eps:
-            th = (r - rho_eps) / (r - mn) if r > mn else 0.0
-            th = min(max(th, 0.0), 1.0)
+            th = zhang_shu_theta(r, mn, rho_eps)
             for p in range(6):
                 k = slot[i, p]
                 Ve[k, 0] = r + th * (Ve[k, 0] - r)
@@ -135,9 +143,8 @@ def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vh
     if nc == 1:
         _fct_density(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, UL[0], P[0], R_[0], dQ)
         return
-    nu = nv if nc > 1 else 1  # the constraints read the density only, or all variables
     for i in range(m):
-        for v in range(nu):
+        for v in range(nv):
             UL[v, i] = Q[i, v]
         for c in range(nc):
             P[c, i] = 0.0
@@ -146,7 +153,7 @@ def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vh
     for e in range(ne):
         L = e2t[e, 0]
         R = e2t[e, 1]
-        for v in range(nu):
+        for v in range(nv):
             f = FL[e, v] * dt
             UL[v, L] -= f * inv_areas[L]
             if R >= 0:

@@ -37,7 +37,7 @@ import numba as nb
 import numpy as np
 
 from ..mesh.trimesh import TriMesh
-from ._kernels import FAST, positivity_limit
+from ._kernels import FAST, positivity_limit, zhang_shu_theta
 
 __all__ = ["ReconstructionData", "build_reconstruction", "reconstruct", "GAUSS_S", "D0"]
 
@@ -570,8 +570,7 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
                 out_int[i, p - 6, 1] = vb
                 out_int[i, p - 6, 2] = vc
         if limit and mn < rho_eps:  # Zhang-Shu: scale the density's deviations (rare)
-            th = (qa - rho_eps) / (qa - mn) if qa > mn else 0.0
-            th = min(max(th, 0.0), 1.0)
+            th = zhang_shu_theta(qa, mn, rho_eps)
             for p in range(9):
                 x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
                 va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
