@@ -415,12 +415,6 @@ class BarotropicModel(MacroModel):
             ex.insert(0, default_exit)
         self.exit_conditions = tuple(ex)
         self._h_rho, self._h_val = law.h_table()
-        # the one-pass kernels compute this class's flux and relaxation: a subclass that
-        # changes either gets the solver's generic path
-        if type(self).flux is not BarotropicModel.flux:
-            self.cell_flux = self.edge_flux = None
-        if type(self).source is not BarotropicModel.source:
-            self.source_mean = None
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         F = np.empty_like(qL)

@@ -10,6 +10,9 @@ from ...errors import ParameterError
 
 __all__ = ["MacroModel", "MACRO_MODELS", "register_macro_model", "macro_model"]
 
+#: the optional one-pass hooks and the method whose work each does
+ONE_PASS_HOOKS = {"cell_flux": "flux", "edge_flux": "flux", "source_mean": "source"}
+
 
 class MacroModel:
     """A continuum model for the finite-volume core.
@@ -20,6 +23,19 @@ class MacroModel:
     """
 
     name: str = "model"
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        """A subclass that overrides :meth:`flux` or :meth:`source` below the class that
+        supplies a one-pass hook for it (``ONE_PASS_HOOKS``) loses the hook: the hook
+        computes its owner's method, so the solver takes the generic path instead."""
+        super().__init_subclass__(**kwargs)
+        mro = cls.__mro__
+        for hook, method in ONE_PASS_HOOKS.items():
+            owner = next(k for k in mro if hook in vars(k))
+            if vars(owner)[hook] is None:
+                continue
+            if mro.index(next(k for k in mro if method in vars(k))) < mro.index(owner):
+                setattr(cls, hook, None)
     #: number of conserved variables: 1 (density) or 3 (density, x- and y-momentum)
     n_vars: int = 3
     #: exit conditions this model offers; the first is the default

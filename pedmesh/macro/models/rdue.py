@@ -91,8 +91,6 @@ class RDUE(MacroModel):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
         self.U_f, self.beta = float(U_f), float(beta)
-        if type(self).flux is not RDUE.flux:  # the one-pass kernels compute this flux
-            self.cell_flux = self.edge_flux = None
 
     def f(self, rho):
         return rho * self.U_f * np.exp(-self.beta * rho)
