@@ -19,6 +19,8 @@ Where ``phi`` is infinite (no exit reachable) the direction is zero.
 
 from __future__ import annotations
 
+import math
+
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
@@ -61,7 +63,8 @@ def _vertex_averaging(mesh: TriMesh) -> sp.csr_matrix:
 def _boundary_wedges(mesh: TriMesh):
     """Per boundary vertex: the directions to its next and previous boundary neighbours
     (walkable area on the left, so the walkable wedge turns counter-clockwise from
-    ``d_next`` to ``d_prev``), and the outward exit normal where it lies on an exit."""
+    ``d_next`` to ``d_prev``); the vertices on an exit and their unit outward exit
+    normals."""
     cache = mesh._cache
     if "wedges" in cache:
         return cache["wedges"]
@@ -90,7 +93,8 @@ def _boundary_wedges(mesh: TriMesh):
     np.add.at(exit_n, e[ex, 0], n_out[ex])
     np.add.at(exit_n, e[ex, 1], n_out[ex])
     del t
-    cache["wedges"] = (verts, dn, dp, exit_n)
+    on_exit = np.flatnonzero(np.hypot(exit_n[:, 0], exit_n[:, 1]) > 0)
+    cache["wedges"] = (verts, dn, dp, on_exit, _normalise(exit_n[on_exit]))
     return cache["wedges"]
 
 
@@ -101,8 +105,48 @@ def _ccw_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _normalise(v: np.ndarray) -> np.ndarray:
-    nrm = np.hypot(v[:, 0], v[:, 1])
-    return np.divide(v, nrm[:, None], out=np.zeros_like(v), where=nrm[:, None] > 0)
+    """Rows of ``v`` (k, 2) scaled to unit length (zero rows stay zero)."""
+    out = np.empty((v.shape[0], 2))
+    _unit_rows(np.ascontiguousarray(v, dtype=np.float64), out)
+    return out
+
+
+@nb.njit(cache=True)
+def _unit_rows(v, out):
+    for i in range(v.shape[0]):
+        x, y = v[i, 0], v[i, 1]
+        nrm = math.sqrt(x * x + y * y)
+        if nrm > 0.0:
+            out[i, 0] = x / nrm
+            out[i, 1] = y / nrm
+        else:
+            out[i, 0] = 0.0
+            out[i, 1] = 0.0
+
+
+@nb.njit(cache=True)
+def _descent(bgrad, triangles, phi, grad, unit):
+    """Per triangle: the P1 gradient ``grad`` of the vertex values ``phi`` (0 where a vertex
+    value is not finite) and the unit descent direction ``unit`` = -grad/|grad| (0 where the
+    gradient is 0). ``bgrad`` (m, 3, 2): gradients of the barycentric coordinates."""
+    for t in range(triangles.shape[0]):
+        p0 = phi[triangles[t, 0]]
+        p1 = phi[triangles[t, 1]]
+        p2 = phi[triangles[t, 2]]
+        if not (math.isfinite(p0) and math.isfinite(p1) and math.isfinite(p2)):
+            gx = gy = 0.0
+        else:
+            gx = bgrad[t, 0, 0] * p0 + bgrad[t, 1, 0] * p1 + bgrad[t, 2, 0] * p2
+            gy = bgrad[t, 0, 1] * p0 + bgrad[t, 1, 1] * p1 + bgrad[t, 2, 1] * p2
+        grad[t, 0] = gx
+        grad[t, 1] = gy
+        nrm = math.sqrt(gx * gx + gy * gy)
+        if nrm > 0.0:
+            unit[t, 0] = -gx / nrm
+            unit[t, 1] = -gy / nrm
+        else:
+            unit[t, 0] = 0.0
+            unit[t, 1] = 0.0
 
 
 def _jamb_overrides(mesh: TriMesh) -> np.ndarray:
@@ -278,16 +322,17 @@ class DirectionField:
         self.mesh = mesh
         phi = np.asarray(phi, dtype=np.float64)
         finite = np.isfinite(phi)
-        tri_ok = finite[mesh.triangles].all(axis=1)
-        g = p1_gradients(mesh, np.where(finite, phi, 0.0))
-        g[~tri_ok] = 0.0
-        #: (m, 2) P1 gradient of phi per triangle.
-        self.triangle_gradients = g
+        m = mesh.n_triangles
+        #: (m, 2) P1 gradient of phi per triangle (0 where a vertex value is infinite).
+        self.triangle_gradients = np.empty((m, 2))
         #: (m, 2) unit direction -grad(phi)/|grad(phi)| per triangle.
-        self.triangle_directions = _normalise(-g)
-        G = _vertex_averaging(mesh) @ (-g)
-        e = _normalise(G)
-        verts, dn, dp, exit_n = _boundary_wedges(mesh)
+        self.triangle_directions = np.empty((m, 2))
+        _descent(_basis_gradients(mesh), mesh.triangles, phi, self.triangle_gradients,
+                 self.triangle_directions)
+        # (the averaging's positive row scaling does not change the normalised direction)
+        e = _normalise(_vertex_averaging(mesh) @ self.triangle_gradients)
+        np.negative(e, out=e)
+        verts, dn, dp, on_exit, exit_dir = _boundary_wedges(mesh)
         ev = e[verts]
         wedge = _ccw_angle(dn, dp)
         ang = _ccw_angle(dn, ev)
@@ -297,8 +342,7 @@ class DirectionField:
         ev[outside & to_next] = dn[outside & to_next]
         ev[outside & ~to_next] = dp[outside & ~to_next]
         e[verts] = ev
-        on_exit = np.hypot(exit_n[:, 0], exit_n[:, 1]) > 0
-        e[on_exit] = _normalise(exit_n[on_exit])
+        e[on_exit] = exit_dir
         e[~finite] = 0.0
         #: (n, 2) unit direction at the vertices.
         self.vertex_directions = np.ascontiguousarray(e)

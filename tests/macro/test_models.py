@@ -290,3 +290,30 @@ def test_density_flux_limiter_equals_the_general_one():
     div = np.empty_like(Q)
     K.divergence(out[0][0], s.e2t, s.inv_areas, div)
     np.testing.assert_allclose(out[0][2], div, rtol=0, atol=1e-13 * np.abs(div).max())
+
+
+@pytest.mark.parametrize("name", ["pw", "mac1", "mac2-local", "mac2-nonlocal", "eos"])
+def test_fluxes_declared_direction_free_ignore_the_edge_directions(name):
+    """A model with ``direction_dependent_flux = False`` gets no directions at the edges
+    (the solver skips sampling them); its residual must not change when they are set, at
+    any of its exit conditions."""
+    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
+    mesh = room.mesh(max_area=0.05)
+    rng = np.random.default_rng(3)
+    for exit_kind in macro_model(name).exit_conditions:
+        model = macro_model(name)
+        assert not model.direction_dependent_flux
+        s = FVSolver(mesh, model, FVOptions(exit=exit_kind))
+        Q = _rough_state(model, mesh)
+        s.update_route(Q)
+        d1, o1 = s.residual(Q, 0.0, 1e-4)
+        assert not np.any(s.e_edge)  # not sampled
+        a = rng.uniform(0, 2 * np.pi, s.e_edge.shape[:2])
+        s.e_edge = np.stack([np.cos(a), np.sin(a)], axis=-1)
+        s._sample_directions()
+        for hooks in (True, False):
+            if not hooks:  # the generic path too
+                model.edge_flux = model.cell_flux = None
+            d2, o2 = s.residual(Q, 0.0, 1e-4)
+            np.testing.assert_allclose(d2, d1, rtol=0, atol=1e-13 * np.abs(d1).max())
+            np.testing.assert_allclose(o2, o1, rtol=1e-13)

@@ -42,8 +42,9 @@ class MacroModel:
     exit_conditions: tuple[str, ...] = ("vacuum", "transmissive")
     #: the model needs the desired direction e (eikonal) at the quadrature points
     needs_route: bool = True
-    #: the numerical flux depends on the direction e (so it differs between Gauss points
-    #: even for equal states)
+    #: the numerical fluxes (interior, wall and exit) depend on the direction e (so they
+    #: differ between Gauss points even for equal states); if not, the solver does not
+    #: sample e at the edges
     direction_dependent_flux: bool = True
     #: CFL number when the options do not set one (see :class:`~pedmesh.macro.solver.FVOptions`)
     default_cfl: float = 0.7
