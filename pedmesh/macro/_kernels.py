@@ -317,3 +317,21 @@ def add_point_mean(S, dQ):
     for i in range(m):
         for v in range(nv):
             dQ[i, v] += (S[3 * i, v] + S[3 * i + 1, v] + S[3 * i + 2, v]) / 3.0
+
+
+@nb.njit(**FAST)
+def cell_total(areas, Q):
+    """sum_i |T_i| Q[i, 0]: the number of pedestrians in the cells [ped]. (A compiled loop,
+    not ``np.dot``: OpenBLAS hands a dot product of this size to a second thread, which
+    waits a full time slice, about 4 ms, when the other core is busy.)"""
+    m = areas.shape[0]
+    s0 = s1 = s2 = s3 = 0.0  # four partial sums: shorter error chains, and faster
+    n4 = m - m % 4
+    for i in range(0, n4, 4):
+        s0 += areas[i] * Q[i, 0]
+        s1 += areas[i + 1] * Q[i + 1, 0]
+        s2 += areas[i + 2] * Q[i + 2, 0]
+        s3 += areas[i + 3] * Q[i + 3, 0]
+    for i in range(n4, m):
+        s0 += areas[i] * Q[i, 0]
+    return (s0 + s1) + (s2 + s3)

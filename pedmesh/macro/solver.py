@@ -392,7 +392,7 @@ class FVSolver:
 
     def mass(self, Q: np.ndarray) -> float:
         """Number of pedestrians inside [ped]."""
-        return float(np.dot(self.areas, Q[:, 0]))
+        return float(K.cell_total(self.areas, Q))
 
 
 def model_rho_cut(model: MacroModel) -> float:

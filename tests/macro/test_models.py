@@ -317,3 +317,14 @@ def test_fluxes_declared_direction_free_ignore_the_edge_directions(name):
             d2, o2 = s.residual(Q, 0.0, 1e-4)
             np.testing.assert_allclose(d2, d1, rtol=0, atol=1e-13 * np.abs(d1).max())
             np.testing.assert_allclose(o2, o1, rtol=1e-13)
+
+
+@pytest.mark.parametrize("m", [1, 3, 4, 7, 10001])
+def test_cell_total_is_the_area_weighted_sum(m):
+    from pedmesh.macro._kernels import cell_total
+
+    rng = np.random.default_rng(m)
+    areas, Q = rng.random(m), rng.random((m, 3))
+    exact = math.fsum(areas * Q[:, 0])
+    # the bound of recursive summation over four partial sums of about m/4 terms each
+    assert abs(cell_total(areas, Q) - exact) <= (m / 4 + 3) * 2.0**-52 * exact
