@@ -43,9 +43,12 @@ def _basis_gradients(mesh: TriMesh) -> np.ndarray:
 
 
 def p1_gradients(mesh: TriMesh, phi: np.ndarray) -> np.ndarray:
-    """(m, 2) gradient of the P1 interpolant of vertex values ``phi`` in each triangle."""
-    g = _basis_gradients(mesh)
-    return np.einsum("tij,ti->tj", g, phi[mesh.triangles])
+    """(m, 2) gradient of the P1 interpolant of vertex values ``phi`` in each triangle (0 in
+    triangles with a non-finite vertex value)."""
+    grad = np.empty((mesh.n_triangles, 2))
+    _descent(_basis_gradients(mesh), mesh.triangles, np.asarray(phi, dtype=np.float64), grad,
+             np.empty_like(grad))
+    return grad
 
 
 def _vertex_averaging(mesh: TriMesh) -> sp.csr_matrix:
