@@ -164,10 +164,9 @@ class FVSolver:
         self.phi = self._eikonal.solve(cost)
         df = DirectionField(self.mesh, self.phi)
         m = self.mesh.n_triangles
-        e2t0 = self.e2t[:, 0]
         if self.model.direction_dependent_flux:  # (else no flux reads it)
             self.e_edge = df.at(self.recon.edge_pt.reshape(-1, 2),
-                                np.repeat(e2t0, 2)).reshape(-1, 2, 2)
+                                np.repeat(self.e2t[:, 0], 2)).reshape(-1, 2, 2)
         self.e_int = df.at(self.int_pts.reshape(-1, 2), np.repeat(np.arange(m), 3)).reshape(m, 3, 2)
         self.e_cell = df.triangle_directions
         self._sample_directions()

@@ -166,6 +166,24 @@ def test_run_contract(geometries_dir, tmp_path, model):
     assert {"rho", "velocity"} <= set(g.cell_data.keys()) and "phi" in g.point_data.keys()
 
 
+def _small_mesh():
+    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
+    return room.mesh(max_area=0.05)
+
+
+def _rough_state(model, mesh, seed=11):
+    """Density with vacuum and near-vacuum cells (below rho_cut: desingularised velocity),
+    and fast momenta."""
+    rng = np.random.default_rng(seed)
+    rho = 4.0 * rng.random(mesh.n_triangles)
+    rho[rng.random(mesh.n_triangles) < 0.2] = 0.0
+    rho[rng.random(mesh.n_triangles) < 0.1] = 1e-4
+    Q = model.initial_state(rho)
+    if Q.shape[1] == 3:
+        Q[:, 1:] = rng.normal(scale=1.5, size=(mesh.n_triangles, 2)) * rho[:, None]
+    return Q
+
+
 @pytest.mark.parametrize("name", ["pw", "mac2-local", "mac1", "rdue"])
 def test_fused_first_order_fluxes_equal_the_gathered_ones(name):
     """Models read the interior edges' cell averages in place for the first-order fluxes
@@ -174,17 +192,10 @@ def test_fused_first_order_fluxes_equal_the_gathered_ones(name):
     path's, bit for bit, on a state with vacuum, near-vacuum and fast cells (rdue: to
     round-off, as the kernel projects the direction on the normal with fused multiply-adds
     where the gathered path uses numpy)."""
-    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
-    mesh = room.mesh(max_area=0.05)
+    mesh = _small_mesh()
     model = macro_model(name)
     s = FVSolver(mesh, model, FVOptions())
-    rng = np.random.default_rng(11)
-    rho = 4.0 * rng.random(mesh.n_triangles)
-    rho[rng.random(mesh.n_triangles) < 0.2] = 0.0
-    rho[rng.random(mesh.n_triangles) < 0.1] = 1e-4  # below rho_cut: desingularised velocity
-    Q = model.initial_state(rho)
-    if Q.shape[1] == 3:
-        Q[:, 1:] = rng.normal(scale=1.5, size=(mesh.n_triangles, 2)) * rho[:, None]
+    Q = _rough_state(model, mesh)
     s.update_route(Q)
     s.residual(Q, 0.0, 1e-3)  # allocates the work arrays
     assert s._one_point_low_order(True) == (name != "rdue") and model.cell_flux is not None
@@ -201,26 +212,13 @@ def test_fused_first_order_fluxes_equal_the_gathered_ones(name):
         np.testing.assert_array_equal(a1, a2)
 
 
-def _rough_state(model, mesh, seed=11):
-    """Density with vacuum and near-vacuum cells, and fast momenta."""
-    rng = np.random.default_rng(seed)
-    rho = 4.0 * rng.random(mesh.n_triangles)
-    rho[rng.random(mesh.n_triangles) < 0.2] = 0.0
-    rho[rng.random(mesh.n_triangles) < 0.1] = 1e-4
-    Q = model.initial_state(rho)
-    if Q.shape[1] == 3:
-        Q[:, 1:] = rng.normal(scale=1.5, size=(mesh.n_triangles, 2)) * rho[:, None]
-    return Q
-
-
 @pytest.mark.parametrize("name", ["pw", "mac2-local", "eos", "rdue"])
 def test_one_pass_fluxes_and_sources_equal_the_generic_path(name):
     """Models integrate the high-order edge fluxes (``edge_flux``) and the barotropic ones
     average the interior-point sources (``source_mean``) in one pass each; the residual
     must be the generic path's (point fluxes, then integration; point sources, then the
     mean) to round-off."""
-    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
-    mesh = room.mesh(max_area=0.05)
+    mesh = _small_mesh()
     model = macro_model(name)
     s = FVSolver(mesh, model, FVOptions())
     Q = _rough_state(model, mesh)
@@ -266,8 +264,7 @@ def test_density_flux_limiter_equals_the_general_one():
     switched off in every cell), and the divergence must be that of its fluxes."""
     from pedmesh.macro import _kernels as K
 
-    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
-    mesh = room.mesh(max_area=0.05)
+    mesh = _small_mesh()
     model = macro_model("pw")
     s = FVSolver(mesh, model, FVOptions())
     Q = _rough_state(model, mesh)
@@ -297,8 +294,7 @@ def test_fluxes_declared_direction_free_ignore_the_edge_directions(name):
     """A model with ``direction_dependent_flux = False`` gets no directions at the edges
     (the solver skips sampling them); its residual must not change when they are set, at
     any of its exit conditions."""
-    room = Room([(0, 0), (6, 0), (6, 4), (0, 4)], exits=[Exit("e", [(6, 1), (6, 3)])])
-    mesh = room.mesh(max_area=0.05)
+    mesh = _small_mesh()
     rng = np.random.default_rng(3)
     for exit_kind in macro_model(name).exit_conditions:
         model = macro_model(name)

@@ -23,6 +23,18 @@ class MacroModel:
     """
 
     name: str = "model"
+    #: number of conserved variables: 1 (density) or 3 (density, x- and y-momentum)
+    n_vars: int = 3
+    #: exit conditions this model offers; the first is the default
+    exit_conditions: tuple[str, ...] = ("vacuum", "transmissive")
+    #: the model needs the desired direction e (eikonal) at the quadrature points
+    needs_route: bool = True
+    #: the numerical fluxes (interior, wall and exit) depend on the direction e (so they
+    #: differ between Gauss points even for equal states); if not, the solver does not
+    #: sample e at the edges
+    direction_dependent_flux: bool = True
+    #: CFL number when the options do not set one (see :class:`~pedmesh.macro.solver.FVOptions`)
+    default_cfl: float = 0.7
 
     def __init_subclass__(cls, **kwargs) -> None:
         """A subclass that overrides :meth:`flux` or :meth:`source` below the class that
@@ -36,18 +48,6 @@ class MacroModel:
                 continue
             if mro.index(next(k for k in mro if method in vars(k))) < mro.index(owner):
                 setattr(cls, hook, None)
-    #: number of conserved variables: 1 (density) or 3 (density, x- and y-momentum)
-    n_vars: int = 3
-    #: exit conditions this model offers; the first is the default
-    exit_conditions: tuple[str, ...] = ("vacuum", "transmissive")
-    #: the model needs the desired direction e (eikonal) at the quadrature points
-    needs_route: bool = True
-    #: the numerical fluxes (interior, wall and exit) depend on the direction e (so they
-    #: differ between Gauss points even for equal states); if not, the solver does not
-    #: sample e at the edges
-    direction_dependent_flux: bool = True
-    #: CFL number when the options do not set one (see :class:`~pedmesh.macro.solver.FVOptions`)
-    default_cfl: float = 0.7
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         """Numerical flux density (k, nv) across the normal (from L to R) and the wave speed
