@@ -33,15 +33,13 @@ import numpy as np
 
 from .errors import ParameterError, PedmeshError
 from .micro._kernels import pair_force
+from .macro.models.eos_file import DEFAULT_EOS, EOS_FORMAT, load_eos, save_eos
 from .micro.params import SocialForceParams
 
 __all__ = ["CalibrationOptions", "measure_pressure", "calibrate", "fit_eos", "load_eos",
            "save_eos", "lattice_virial", "periodic_virial", "pedestrian_stress",
            "flowing_stress", "eos_pressure", "DEFAULT_EOS", "EOS_FORMAT"]
 
-EOS_FORMAT = "pedmesh-eos"
-#: the calibration shipped for the default (Table 1) parameters
-DEFAULT_EOS = Path(__file__).resolve().parent / "data" / "eos_default.json"
 _SFM_KEYS = ("m", "A", "B", "r", "k", "kappa")
 
 
@@ -252,7 +250,7 @@ def measure_pressure(rho: float, params: SocialForceParams | None = None,
     n_relax = int(round(o.relax_time / o.dt))
     n_sample = int(round(o.sample_time / o.dt))
     every = max(1, int(round(o.sample_every / o.dt)))
-    from .run.driver import stop_requested
+    from ._signals import stop_requested
 
     per = []
     kin = []
@@ -347,42 +345,6 @@ def calibrate(params: SocialForceParams | None = None, options: CalibrationOptio
     cal["status"] = "complete"
     cal["seconds"] = time.perf_counter() - t0
     return cal
-
-
-def save_eos(cal: dict, path: str | Path) -> Path:
-    path = Path(path)
-    path.write_text(json.dumps(cal, indent=1) + "\n", encoding="utf-8")
-    return path
-
-
-def load_eos(path: str | Path | None = None) -> dict:
-    """Read a calibration file (default: the one shipped for Table 1's parameters)."""
-    p = Path(path) if path else DEFAULT_EOS
-    if not p.exists():
-        raise PedmeshError(f"{p}: no such calibration file (run 'pedmesh calibrate')")
-    try:
-        cal = json.loads(p.read_text())
-    except json.JSONDecodeError as exc:
-        raise PedmeshError(f"{p}: not a calibration file ({exc.msg})") from None
-    if not isinstance(cal, dict) or cal.get("format") != EOS_FORMAT:
-        raise PedmeshError(f"{p}: not a pedmesh equation-of-state file")
-    if cal.get("status") == "incomplete" or "fit" not in cal:
-        raise PedmeshError(f"{p}: incomplete calibration ({len(cal.get('table', []))} "
-                           "densities measured; the run was interrupted): rerun 'pedmesh "
-                           "calibrate'")
-    fit = cal["fit"]
-    try:
-        _check_fit(fit)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise PedmeshError(f"{p}: malformed fit in the calibration file ({exc})") from None
-    return cal
-
-
-def _check_fit(fit: dict) -> None:
-    """Raise if ``fit`` is not a usable monotone table."""
-    from .macro.models.barotropic import PressureLaw
-
-    PressureLaw.table(fit["rho"], fit["p"], fit["dp"])
 
 
 # ------------------------------------------------------------------ the flowing crowd

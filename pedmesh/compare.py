@@ -65,15 +65,19 @@ def parse_model_specs(text: str | Sequence[str]) -> list[ModelSpec]:
     return out
 
 
-def _reusable(res: RunResult, spec: ModelSpec, geometry: str, mesh_options: dict) -> bool:
-    if not res.finished or res.model != spec.name:
-        return False
-    params = res.summary.get("parameters", {})
-    for k, v in spec.overrides.items():
-        if k not in params or params[k] != v:
-            return False
-    mesh = res.summary.get("mesh", {})
-    return all(mesh.get(k) == v for k, v in mesh_options.items())
+def _settings_difference(res: RunResult, wanted: dict) -> str | None:
+    """Why the run ``res`` cannot stand for a run with settings ``wanted`` (None if it can):
+    an unfinished run or any recorded setting that differs."""
+    status = res.status
+    if status not in ("finished", "stopped at t_end"):
+        return f"its status is '{status}'"
+    have = res.settings
+    if not have:
+        return "it records no settings (made by an older pedmesh)"
+    for k in sorted(set(have) | set(wanted)):
+        if have.get(k) != wanted.get(k):
+            return f"{k} differs ({have.get(k)!r} there, {wanted.get(k)!r} asked)"
+    return None
 
 
 @dataclass
@@ -95,21 +99,24 @@ def _density_or_none(res: RunResult, t: float, mesh):
         return None
 
 
-def _outflow_total(res: RunResult, kernel: bool = False):
-    """(t, total exit flow [ped/s]). For particle runs the plain crossing rate (2 s window)
-    unless ``kernel``: then the paper's f_c from the kernel fields at the exits, which sees
-    only the pedestrians still inside (those who crossed are removed) and so reads about
-    half the crossing rate."""
-    et = res.exit_times
-    if len(et) and not kernel:
-        t = res.evacuation[0]
-        from .analysis import crossing_rate
-
-        return t, crossing_rate(exit_times=et, t=t, window=2.0)
-    t, f, _ = res.outflow
-    if len(t) == 0:
+def _outflow_total(res: RunResult, kernel: bool = False, window: float = 2.0):
+    """(t, total exit flow [ped/s]): the people out in the centred ``window`` [s] around
+    each sample of the evacuation curve, divided by its length; the same for particle and
+    continuum runs. With ``kernel`` (particle runs): the paper's f_c from the kernel fields
+    at the exits (outflow_kernel.csv), which sees only the pedestrians still inside (those
+    who crossed are removed) and so reads about half the crossing rate."""
+    if kernel:
+        p = res.path / "outflow_kernel.csv"
+        if not p.exists():
+            return None
+        d = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
+        return d[:, 0], d[:, 1:].sum(axis=1)
+    t, n = res.evacuation
+    if len(t) < 2:
         return None
-    return t, f.sum(axis=1)
+    lo = np.interp(t - 0.5 * window, t, n, left=0.0)
+    hi = np.interp(t + 0.5 * window, t, n)
+    return t, (hi - lo) / window
 
 
 def _fd_samples(res: RunResult, mesh, every: float = 1.0):
@@ -134,6 +141,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
                    reuse: bool = True, plots: bool = True) -> ComparisonResult:
     """Run (or reuse) every model, then write plots, comparison.csv and comparison.md."""
     from .run import run_model
+    from .run.driver import run_settings
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -142,17 +150,21 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
     for k, spec in enumerate(specs):
         d = out / spec.label
         prefix = f"[{k + 1}/{len(specs)}] {spec.label}"
-        if reuse and (d / "summary.json").exists():
+        wanted = run_settings(spec.name, overrides=spec.overrides, t_end=t_end,
+                              geometry=geometry, mesh_options=mesh_options)
+        why = "no run there yet"
+        if (d / "summary.json").exists():
             res = RunResult.load(d)
-            if _reusable(res, spec, str(geometry), mesh_options):
+            why = _settings_difference(res, wanted) if reuse else "reuse is off"
+            if why is None:
                 if not quiet:
                     print(f"{prefix}: reusing the finished run in {d}", file=sys.stderr)
                 runs[spec.label] = res
                 continue
         if not quiet:
-            print(f"{prefix}: running", file=sys.stderr)
+            print(f"{prefix}: running ({why})", file=sys.stderr)
         run_model(room, mesh, spec.name, overrides=spec.overrides, t_end=t_end, out_dir=d,
-                  quiet=quiet, geometry=str(geometry), mesh_options=mesh_options)
+                  quiet=quiet, geometry=geometry, mesh_options=mesh_options)
         runs[spec.label] = RunResult.load(d)
     labels = list(runs)
     ref = runs[labels[0]]

@@ -98,17 +98,17 @@ def test_run_command_writes_the_contract(geometries_dir, tmp_path, capsys):
     dens.set_active_time_value(dens.time_values[0])
     assert dens.read()[0].point_data["density"].max() > 1.0
     traj = (out / "trajectories.txt").read_text().splitlines()
-    assert any("framerate: 0.2" in line for line in traj[:4])
+    assert any("framerate: 10 fps" in line for line in traj[:4])  # own rate, not the frames'
 
 
 def test_trajectories_load_in_pedpy(geometries_dir, tmp_path):
     pedpy = pytest.importorskip("pedpy")
     out = tmp_path / "cb"
     assert main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--out", str(out),
-                 "-q", "--t-end", "5", "--param", "output_interval=0.5"]) == 0
+                 "-q", "--t-end", "5", "--trajectory-rate", "4"]) == 0
     traj = pedpy.load_trajectory_from_txt(trajectory_file=out / "trajectories.txt")
-    assert traj.frame_rate == 2.0
-    assert len(traj.data) == 150 * 11 and set(traj.data.columns) >= {"id", "frame", "x", "y"}
+    assert traj.frame_rate == 4.0
+    assert len(traj.data) == 150 * 21 and set(traj.data.columns) >= {"id", "frame", "x", "y"}
 
 
 @pytest.mark.parametrize(("args", "message"), [

@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from ..calibration import CalibrationOptions, calibrate, save_eos
     from ..errors import ParameterError
     from ..micro.params import SocialForceParams, parse_param_overrides, with_overrides
-    from ..run.driver import stop_on_signals
+    from .._signals import stop_on_signals
 
     overrides = parse_param_overrides(args.param)
     allowed = {"A", "B", "k", "kappa", "m", "r", "tau"}

@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from ..compare import parse_model_specs, run_comparison
     from ..errors import ParameterError
     from ..run import RunInterrupted
-    from ..run.driver import stop_on_signals
+    from .._signals import stop_on_signals
     from .mesh import mesh_from_args
 
     specs = parse_model_specs(args.models)

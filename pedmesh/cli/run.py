@@ -12,15 +12,23 @@ DESCRIPTION = """\
 Simulate the crowd of a room's start areas until everyone has left (or --t-end) and write
 into the output directory, as the run goes:
 
-  summary.json       model, status, n_initial, n_evacuated, t_evac_50/90/100 [s], steps,
-                     dt, wall time and every parameter used
-  evacuation.csv     t,evacuated (cumulative number out), every 0.1 s
-  density.pvd        density on the mesh [ped/m^2], one frame per output interval
-  pedestrians.pvd    (particle models) positions with velocity, speed, local density
-  trajectories.txt   (particle models) id frame x y, for PedPy's load_trajectory_from_txt
+  summary.json         model, status, n_initial, n_evacuated, t_evac_50/90/100 [s],
+                       steps, dt, wall time, every parameter used and the run's settings
+  evacuation.csv       t,evacuated (cumulative number out), every 0.1 s
+  outflow.csv          t and the flow [ped/s] through each exit since the previous row
+  density.pvd          density on the mesh [ped/m^2], one frame per output interval
+  pedestrians.pvd      (particle models) positions with velocity, speed, local density
+  trajectories.txt     (particle models) id frame x y at --trajectory-rate frames/s, for
+                       PedPy's load_trajectory_from_txt; a leaver's last row is on the exit
+  trajectories.sqlite  (particle models) the same in JuPedSim's SQLite format, for
+                       pedpy.load_trajectory_from_jupedsim_sqlite
+  exits.csv            (particle models) id,exit,t of everyone who left
 
-An interrupted run (Ctrl-C, kill) keeps everything written up to the last frame.
-Parameters are set with --param NAME=VALUE (repeatable); the summary lists them all.
+The run owns its output directory: a directory holding an earlier pedmesh run is cleared
+first (its files only), a non-empty directory that is not a pedmesh run is refused, and so
+is a directory another run is writing into. An interrupted run (Ctrl-C, kill) keeps
+everything written up to then; its summary says 'interrupted', a failed one 'failed' with
+the error. Parameters are set with --param NAME=VALUE (repeatable); the summary lists them.
 
 examples:
   pedmesh run geometries/example2.json --model sfm --out runs/ex2-sfm
@@ -41,6 +49,8 @@ def add_args(p: argparse.ArgumentParser) -> None:
     add_mesh_args(p)
     p.add_argument("--out", metavar="DIR", default=None,
                    help="output directory (default: runs/<geometry>-<model>)")
+    p.add_argument("--trajectory-rate", type=float, default=10.0, metavar="FPS",
+                   help="(sfm) frames per second of the trajectory files (default: 10)")
     p.add_argument("--static-routes", action="store_true",
                    help="(sfm) keep the initial routes instead of re-solving them from the density")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
@@ -51,18 +61,24 @@ def run(args: argparse.Namespace) -> int:
 
     from ..micro.params import parse_param_overrides
     from ..run import RunInterrupted, get_model, run_model
-    from ..run.driver import stop_on_signals
+    from .._signals import stop_on_signals
     from .mesh import mesh_from_args
 
     name, _ = get_model(args.model)  # fail fast on an unknown model
     overrides = parse_param_overrides(args.param)
     room, mesh = mesh_from_args(args)
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-{name}"
-    model_options = {"static_routes": True} if args.static_routes else {}
-    if args.static_routes and name != "sfm":
-        from ..errors import ParameterError
+    from ..errors import ParameterError
 
-        raise ParameterError("--static-routes applies to the sfm model only")
+    model_options: dict = {}
+    if args.static_routes:
+        if name != "sfm":
+            raise ParameterError("--static-routes applies to the sfm model only")
+        model_options["static_routes"] = True
+    if args.trajectory_rate != 10.0:
+        if name != "sfm":
+            raise ParameterError("--trajectory-rate applies to the sfm model only")
+        model_options["trajectory_rate"] = args.trajectory_rate
     try:
         with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current step
             s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,

@@ -121,7 +121,7 @@ class MacroRun:
     def done(self) -> bool:
         return self.remaining < self.options.empty_below
 
-    def step(self) -> None:
+    def step(self, t_limit: float = math.inf) -> None:
         self.controller.advance()
         self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
         self._curve_t.append(self.state.t)
@@ -130,6 +130,13 @@ class MacroRun:
     def outflow_rates(self) -> np.ndarray:
         """Flow [ped/s] through each exit in the last step."""
         return self.state.last_exit_flux
+
+    def exit_counts(self) -> np.ndarray:
+        """Pedestrians [ped] out through each exit so far (the integrated boundary flux)."""
+        return np.array(self.state.outflow, float)
+
+    def record(self, writer, final: bool = False) -> None:
+        """Nothing beyond the driver's samples and frames (the run contract's hook)."""
 
     def parameters(self) -> dict[str, Any]:
         return {**self.model.parameters(), **dataclasses.asdict(self.fv_options),

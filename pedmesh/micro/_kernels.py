@@ -384,7 +384,8 @@ def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, ed
     crossed a wall (displacement and velocity, as in the paper), and update triangles.
 
     ``exit_of[i]`` is set to the exit number (or -1) and ``exit_frac[i]`` to the fraction of
-    the step at which the exit was crossed. Returns the number of reflections. A step that
+    the step at which the exit was crossed; a pedestrian who crossed an exit is left at the
+    crossing point (on the exit). Returns the number of reflections. A step that
     ends well inside the triangle it started in (tested with the affine maps of the packed
     table ``P``) crosses nothing and is left as it is.
     """
@@ -409,6 +410,9 @@ def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, ed
             if edge_kind[ed] == EXIT_KIND:
                 exit_of[i] = edge_owner[ed]
                 exit_frac[i] = s_total + (1.0 - s_total) * s
+                # a leaver ends on the exit, at the point where it crossed
+                bx = ax + s * (bx - ax)
+                by = ay + s * (by - ay)
                 break
             # reflect the remaining displacement and the velocity about the wall line
             nx_, ny_ = edge_normals[ed, 0], edge_normals[ed, 1]

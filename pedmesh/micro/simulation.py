@@ -128,6 +128,8 @@ class Simulation:
         self.exit_time = np.full(N, np.nan)
         #: exit number of each pedestrian (by id), -1 while inside
         self.exit_id = np.full(N, -1, np.int64)
+        #: point [m] on the exit where each pedestrian (by id) crossed it, NaN while inside
+        self.exit_point = np.full((N, 2), np.nan)
         self.n_reflections = 0
         self.timers = _Timers()
         # work arrays
@@ -290,6 +292,7 @@ class Simulation:
             ids = self.ids[:n][gone]
             self.exit_time[ids] = self.t + self._exit_frac[:n][gone] * dt
             self.exit_id[ids] = self._exit_of[:n][gone]
+            self.exit_point[ids] = self.x[:n][gone]
             keep = np.flatnonzero(~gone)
             m = len(keep)
             for arr in (self.x, self.v):

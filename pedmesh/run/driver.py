@@ -3,53 +3,22 @@
 from __future__ import annotations
 
 import math
-import signal
 import sys
-import threading
 import time
-from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Mapping
 
-from ..errors import SimulationError
+import numpy as np
+
+from .. import __version__
+from .._signals import request_stop, stop_on_signals, stop_requested
+from ..errors import ParameterError, PedmeshError, SimulationError
 from .models import get_model
-from .output import RunWriter
+from .output import RunWriter, _clean, file_sha256
+from .protocol import RunModel
 
-__all__ = ["run_model", "RunInterrupted", "request_stop", "stop_requested", "stop_on_signals"]
-
-#: set by :func:`request_stop`; runs check it between steps
-_STOP = threading.Event()
-
-
-def request_stop(signum: int | None = None, frame: Any = None) -> None:
-    """Ask the running model to stop after its current step (a signal handler).
-
-    The run then ends as if interrupted, with everything up to that step written. A second
-    request before the run has stopped interrupts at once (KeyboardInterrupt). Raising from
-    the handler itself would interrupt compiled kernels in the middle of a call, which
-    numba reports as an unrelated SystemError.
-    """
-    if _STOP.is_set():
-        raise KeyboardInterrupt
-    _STOP.set()
-
-
-def stop_requested() -> bool:
-    """Whether a stop was requested (long computations check it between their steps)."""
-    return _STOP.is_set()
-
-
-@contextmanager
-def stop_on_signals(signals: tuple[int, ...] = (signal.SIGINT, signal.SIGTERM)) -> Iterator[None]:
-    """Within the block, Ctrl-C and SIGTERM stop a run at the next step boundary."""
-    _STOP.clear()
-    old = {s: signal.signal(s, request_stop) for s in signals}
-    try:
-        yield
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
-        _STOP.clear()
+__all__ = ["run_model", "run_settings", "RunInterrupted", "request_stop", "stop_requested",
+           "stop_on_signals"]
 
 
 class RunInterrupted(Exception):
@@ -61,26 +30,54 @@ class RunInterrupted(Exception):
         self.out_dir = out_dir
 
 
+def run_settings(model: str, *, overrides: Mapping[str, Any] | None = None, t_end: float,
+                 geometry: str | None = None, mesh_options: Mapping[str, Any] | None = None,
+                 model_options: Mapping[str, Any] | None = None,
+                 preset: str | None = None) -> dict[str, Any]:
+    """What a run was asked to do, as recorded in its summary (``settings``) and compared
+    by ``pedmesh compare`` before it reuses a run: the room file's SHA-256, the model, the
+    parameter preset and overrides, t_end [s], the mesh and model options, and the pedmesh
+    version."""
+    room_hash = None
+    if geometry is not None and Path(geometry).is_file():
+        room_hash = file_sha256(geometry)
+    return _clean({
+        "room_sha256": room_hash,
+        "model": model,
+        "preset": preset,
+        "overrides": dict(sorted((overrides or {}).items())),
+        "t_end": float(t_end),
+        "mesh": dict(sorted((mesh_options or {}).items())),
+        "model_options": dict(sorted((model_options or {}).items())),
+        "pedmesh_version": __version__,
+    })
+
+
 def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = None,
               t_end: float = 1000.0, out_dir: str | Path = "run", quiet: bool = False,
               geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
-              model_options: dict[str, Any] | None = None) -> dict[str, Any]:
+              model_options: dict[str, Any] | None = None,
+              preset: str | None = None) -> dict[str, Any]:
     """Run ``model`` on ``mesh`` until everyone has left or ``t_end`` [s].
 
-    Writes the output directory incrementally (see :mod:`pedmesh.run.output`) and returns
-    the final summary. Raises :class:`RunInterrupted` on Ctrl-C or :func:`request_stop`
-    (after writing the summary) and :class:`~pedmesh.errors.SimulationError` on a blow-up
-    (likewise).
+    The run owns ``out_dir`` (see :mod:`pedmesh.run.output`): it refuses a non-empty
+    directory that is not a pedmesh run and one another run is writing into, removes an
+    earlier run's files, and writes its output as it goes. Returns the final summary.
+    Raises :class:`RunInterrupted` on Ctrl-C or :func:`request_stop`,
+    :class:`~pedmesh.errors.SimulationError` on a blow-up, and whatever else stopped the
+    run (a bad parameter while the model is built, a full disk); in every case the summary
+    is written first, with status ``interrupted`` or ``failed`` and the error.
     """
     from tqdm import tqdm
 
     if stop_requested():  # asked to stop before this run began (e.g. between compared models)
         raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
-        raise SimulationError(f"t_end must be a positive number of seconds, got {t_end!r}")
+        raise ParameterError(f"t_end must be a positive number of seconds, got {t_end!r}")
     name, factory = get_model(model)
+    overrides = dict(overrides or {})
+    model_options = dict(model_options or {})
     t_wall0 = time.perf_counter()
-    run = factory(room, mesh, dict(overrides or {}), **(model_options or {}))
     out = Path(out_dir)
     header = {
         "model": name,
@@ -89,83 +86,111 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
         "mesh": {"vertices": mesh.n_points, "triangles": mesh.n_triangles,
                  **(mesh_options or {})},
         "t_end": t_end,
-        "parameters": run.parameters(),
+        "settings": run_settings(name, overrides=overrides, t_end=t_end, geometry=geometry,
+                                 mesh_options=mesh_options, model_options=model_options,
+                                 preset=preset),
     }
-    warnings = list(getattr(run, "warnings", []))
-    if warnings:
-        header["warnings"] = warnings
-        for w in warnings:
-            print(f"pedmesh: warning: {w}", file=sys.stderr)
-    writer = RunWriter(out, header, exit_names=mesh.exit_names,
-                       outflow=hasattr(run, "outflow_rates"))
-    tty = sys.stderr.isatty()
-    bar = tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
-               dynamic_ncols=True, desc=f"{name}", leave=True,
-               mininterval=0.5 if tty else 30.0,
-               bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
-                          "[{elapsed}<{remaining}] {postfix}")
+    writer = RunWriter(out, header, exit_names=mesh.exit_names)
+    run: RunModel | None = None
+    bar = None
+    frame = 0
+    status, error = "failed", None
+    try:
+        run = factory(room, mesh, overrides, **model_options)
+        if not isinstance(run, RunModel):
+            raise TypeError(f"model '{name}' does not implement pedmesh.run.protocol.RunModel")
+        extra: dict[str, Any] = {"parameters": run.parameters()}
+        if run.warnings:
+            extra["warnings"] = list(run.warnings)
+            for w in run.warnings:
+                print(f"pedmesh: warning: {w}", file=sys.stderr)
+        writer.start(extra)
+        tty = sys.stderr.isatty()
+        bar = tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
+                   dynamic_ncols=True, desc=f"{name}", leave=True,
+                   mininterval=0.5 if tty else 30.0,
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
+                              "[{elapsed}<{remaining}] {postfix}")
+        frame = _loop(run, writer, t_end, bar)
+        status = "finished" if run.done else "stopped at t_end"
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise RunInterrupted(run.t if run is not None else 0.0, out) from None
+    except SimulationError as exc:
+        error = str(exc)
+        raise SimulationError(f"{error} (results up to then are in {out})") from None
+    except BaseException as exc:
+        error = str(exc) if isinstance(exc, PedmeshError) else f"{type(exc).__name__}: {exc}"
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        result: dict[str, Any] = {}
+        if run is not None:
+            try:
+                result = dict(run.summary())
+            except Exception as exc:  # the summary of a broken run: keep what we know
+                result = {"summary_error": f"{type(exc).__name__}: {exc}"}
+        summary = writer.finish(status=status, error=error,
+                                t_stop=run.t if run is not None else 0.0, frames=frame,
+                                wall_time_s=time.perf_counter() - t_wall0, **result)
+    if summary.get("status") == "failed":  # the output could not be closed (full disk)
+        raise SimulationError(f"{summary.get('error')} (results up to then are in {out})")
+    return summary
+
+
+def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
+    """Step ``run`` to the end, writing samples and frames; returns the number of frames."""
     next_sample = 0.0
     next_frame = 0.0
     frame = 0
-    last_frame_t = -math.inf
-    status = "finished"
-    error = None
+    last_frame_t = last_sample_t = -math.inf
+    counts0 = np.zeros(len(writer.exit_names))
 
-    def record() -> None:
-        nonlocal next_sample, next_frame, frame, last_frame_t
+    def sample(t: float) -> None:
+        nonlocal last_sample_t, counts0
+        counts = np.asarray(run.exit_counts(), float)
+        span = t - last_sample_t
+        flows = (counts - counts0) / span if math.isfinite(span) and span > 0 else 0 * counts
+        writer.sample(t, run.evacuated)
+        writer.outflow(t, flows)
+        counts0 = counts
+        last_sample_t = t
+
+    def frame_now(t: float) -> None:
+        nonlocal frame, last_frame_t
+        run.write_frame(writer, frame)
+        frame += 1
+        last_frame_t = t
+
+    def record(final: bool = False) -> None:
+        nonlocal next_sample, next_frame
         t = run.t
-        if t >= next_sample - 1e-9:
-            writer.sample(t, run.evacuated)
-            if hasattr(run, "outflow_rates"):
-                writer.outflow(t, run.outflow_rates())
-            if hasattr(run, "flush_records"):
-                run.flush_records(writer)
-            next_sample += run.sample_interval * max(1, math.floor((t - next_sample) / run.sample_interval + 1e-9) + 1)
-        if t >= next_frame - 1e-9:
-            run.write_frame(writer, frame)
-            frame += 1
-            last_frame_t = t
-            next_frame += run.output_interval * max(1, math.floor((t - next_frame) / run.output_interval + 1e-9) + 1)
+        if t >= next_sample - 1e-9 or (final and t > last_sample_t + 1e-9):
+            sample(t)
+            k = math.floor((t - next_sample) / run.sample_interval + 1e-9) + 1
+            next_sample += run.sample_interval * max(1, k)
+        run.record(writer, final=final)
+        if t >= next_frame - 1e-9 or (final and t > last_frame_t + 1e-9):
+            frame_now(t)
+            k = math.floor((t - next_frame) / run.output_interval + 1e-9) + 1
+            next_frame += run.output_interval * max(1, k)
 
-    try:
+    record()
+    last_bar = 0.0
+    while not run.done and run.t < t_end - 1e-9:
+        run.step(min(next_frame, t_end))
+        if run.done or run.t >= t_end - 1e-9:
+            break
         record()
-        last_bar = 0.0
-        while not run.done and run.t < t_end - 1e-9:
-            run.step()
-            record()
-            if stop_requested():
-                raise KeyboardInterrupt
-            if run.t - last_bar >= 0.5 or run.done:
-                bar.update(round(min(run.t, t_end) - last_bar, 3))
-                last_bar = min(run.t, t_end)
-                bar.set_postfix_str(f"inside {run.remaining:.0f}/{run.n_initial:.0f}", refresh=False)
-        if not run.done:
-            status = "stopped at t_end"
-        # the final state
-        if run.t > last_frame_t + 1e-9:
-            writer.sample(run.t, run.evacuated)
-            if hasattr(run, "outflow_rates"):
-                writer.outflow(run.t, run.outflow_rates())
-            if hasattr(run, "flush_records"):
-                run.flush_records(writer)
-            run.write_frame(writer, frame)
-            frame += 1
-        bar.update(round(min(run.t, t_end) - last_bar, 3))
-        if run.done:
-            bar.total = bar.n
-    except KeyboardInterrupt:
-        status = "interrupted"
-    except SimulationError as exc:
-        status = "failed"
-        error = str(exc)
-    finally:
-        bar.close()
-        summary = writer.finish(
-            status=status, error=error, t_stop=run.t, frames=frame,
-            wall_time_s=time.perf_counter() - t_wall0, **run.summary(),
-        )
-    if status == "interrupted":
-        raise RunInterrupted(run.t, out)
-    if status == "failed":
-        raise SimulationError(f"{error} (results up to then are in {out})")
-    return summary
+        if stop_requested():
+            raise KeyboardInterrupt
+        if run.t - last_bar >= 0.5:
+            bar.update(round(min(run.t, t_end) - last_bar, 3))
+            last_bar = min(run.t, t_end)
+            bar.set_postfix_str(f"inside {run.remaining:.0f}/{run.n_initial:.0f}", refresh=False)
+    record(final=True)  # the final state
+    bar.update(round(min(run.t, t_end) - last_bar, 3))
+    if run.done:
+        bar.total = bar.n
+    return frame

@@ -34,22 +34,49 @@ def get_model(name: str) -> tuple[str, Callable[..., Any]]:
 
 
 class SFMRun:
-    """The social force model behind the shared run contract."""
+    """The social force model behind the shared run contract
+    (:class:`~pedmesh.run.protocol.RunModel`).
+
+    ``trajectory_rate`` [frames/s] is the rate of trajectories.txt / trajectories.sqlite
+    (default 10): frame k holds every pedestrian inside at the first step at or after
+    t = k / rate, and each pedestrian who left since the previous frame once more, at the
+    point where they crossed the exit (their last row).
+    """
 
     name = "sfm"
 
     def __init__(self, room, mesh, overrides: dict[str, float], *, static_routes: bool = False,
-                 positions: np.ndarray | None = None) -> None:
+                 positions: np.ndarray | None = None, trajectory_rate: float = 10.0) -> None:
         from ..micro import SFMNumerics, Simulation, SocialForceParams
         from ..micro.params import with_overrides
 
         self.params, self.numerics = with_overrides(overrides, SocialForceParams(), SFMNumerics())
+        rate = trajectory_rate
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+            raise ParameterError(f"trajectory rate must be a positive number of frames per "
+                                 f"second, got {rate!r}")
+        if rate * self.numerics.dt > 1.0 + 1e-9:
+            raise ParameterError(f"trajectory rate {rate:g} /s is above one frame per time "
+                                 f"step (dt = {self.numerics.dt:g} s)")
         self.sim = Simulation(mesh, positions, params=self.params, numerics=self.numerics,
                               reroute=not static_routes)
         self.mesh = mesh
         self.static_routes = static_routes
         self.sample_interval = self.numerics.sample_interval
         self.output_interval = self.numerics.output_interval
+        self.trajectory_rate = float(rate)
+        self.warnings: list[str] = []
+        steps = 1.0 / (rate * self.numerics.dt)
+        if abs(steps - round(steps)) > 1e-6:
+            self.warnings.append(f"1 / (trajectory rate x dt) = {steps:.4g} is not a whole "
+                                 "number: trajectory frames are up to one time step late")
+        room = room if room is not None else mesh.room
+        self._walkable_wkt = room.walkable.wkt if room is not None else None
+        n = self.sim.n_initial
+        self._traj_frame = 0  # the next trajectory frame
+        self._traj_out = np.zeros(n, bool)  # leavers whose last trajectory row is written
+        self._exits_out = np.zeros(n, bool)  # leavers written to exits.csv
+        self._next_record = 0.0
 
     @property
     def t(self) -> float:
@@ -75,34 +102,68 @@ class SFMRun:
     def done(self) -> bool:
         return self.sim.n == 0
 
-    def step(self) -> None:
+    def step(self, t_limit: float = math.inf) -> None:
+        """One step of the fixed dt (``t_limit`` is not needed: frames fall on steps)."""
         self.sim.step()
 
     def parameters(self) -> dict[str, Any]:
         from dataclasses import asdict
 
         return {**asdict(self.params), **asdict(self.numerics),
-                "reroute": not self.static_routes}
+                "reroute": not self.static_routes, "trajectory_rate": self.trajectory_rate}
 
-    def outflow_rates(self) -> np.ndarray:
+    def exit_counts(self) -> np.ndarray:
+        """Pedestrians [ped] who crossed each exit so far."""
+        ids = self.sim.exit_id
+        return np.bincount(ids[ids >= 0], minlength=len(self.mesh.exit_names)).astype(float)
+
+    def kernel_outflow(self) -> np.ndarray:
         """Flow [ped/s] through each exit from the kernel density and kernel velocity at the
-        exit (the paper's f_c for the particle model)."""
+        exit (the paper's f_c for the particle model). It sees only the pedestrians still
+        inside, so it reads about half the crossing rate (outflow_kernel.csv)."""
         from ..analysis import particle_outflow
 
         return particle_outflow(mesh=self.mesh, positions=self.sim.positions,
                                 velocities=self.sim.velocities, R=self.params.R)
 
-    def flush_records(self, writer: RunWriter) -> None:
-        """Append the pedestrians who left since the last call to exits.csv."""
+    def record(self, writer: RunWriter, final: bool = False) -> None:
+        """Trajectory frames when due; every sample interval exits.csv rows and the kernel
+        outflow (outflow_kernel.csv)."""
         sim = self.sim
-        done = np.flatnonzero(np.isfinite(sim.exit_time))
-        new = done[~np.isin(done, getattr(self, "_written", np.zeros(0, np.int64)))]
-        if len(new) or not hasattr(self, "_written"):
+        t = sim.t
+        if t >= self._traj_frame / self.trajectory_rate - 1e-9 or final:
+            self._trajectory_frame(writer)
+        if t >= self._next_record - 1e-9 or final:
+            self._next_record += self.sample_interval * max(
+                1, math.floor((t - self._next_record) / self.sample_interval + 1e-9) + 1)
+            f = self.kernel_outflow()
+            writer.append_rows("outflow_kernel.csv", "t," + ",".join(self.mesh.exit_names),
+                               [f"{t:.4f}," + ",".join(f"{v:.6g}" for v in f)])
+            new = np.flatnonzero(np.isfinite(sim.exit_time) & ~self._exits_out)
             new = new[np.argsort(sim.exit_time[new], kind="stable")]
             names = self.mesh.exit_names
             writer.append_rows("exits.csv", "id,exit,t",
-                               [f"{i},{names[sim.exit_id[i]]},{sim.exit_time[i]:.4f}" for i in new])
-            self._written = done
+                               [f"{i},{names[sim.exit_id[i]]},{sim.exit_time[i]:.4f}"
+                                for i in new])
+            self._exits_out[new] = True
+
+    def _trajectory_frame(self, writer: RunWriter) -> None:
+        sim = self.sim
+        left = np.flatnonzero(np.isfinite(sim.exit_time) & ~self._traj_out)
+        if self._traj_frame > 0 and sim.t <= (self._traj_frame - 1) / self.trajectory_rate \
+                + 1e-9 and len(left) == 0:
+            return  # the final call at a time already written
+        v = sim.velocities
+        speed = np.hypot(v[:, 0], v[:, 1])
+        heading = np.divide(v, speed[:, None], out=np.zeros_like(v), where=speed[:, None] > 0)
+        ids = np.concatenate([sim.active_ids, left])
+        points = np.concatenate([sim.positions, sim.exit_point[left]])
+        ori = np.concatenate([heading, np.zeros((len(left), 2))])
+        writer.trajectory_frame(self._traj_frame, ids, points, self.trajectory_rate,
+                                f"social force model, {self.trajectory_rate:g} frames/s",
+                                orientation=ori, walkable_wkt=self._walkable_wkt)
+        self._traj_out[left] = True
+        self._traj_frame += 1
 
     def write_frame(self, writer: RunWriter, frame: int) -> None:
         from ..analysis import kernel_velocity
@@ -119,8 +180,6 @@ class SFMRun:
                              R=self.params.R)
         writer.density_frame(sim.t, self.mesh, point_data={"density": sim.vertex_density(),
                                                            "velocity": kv})
-        writer.trajectory_frame(frame, sim.active_ids, sim.positions, 1.0 / self.output_interval,
-                                f"social force model, output every {self.output_interval:g} s")
 
     def summary(self) -> dict[str, Any]:
         sim = self.sim
@@ -137,7 +196,8 @@ class SFMRun:
             "dt": self.numerics.dt,
             "exits": {n: int(c) for n, c in zip(self.mesh.exit_names, per_exit)},
             "reflections": sim.n_reflections,
-            "frame_rate": 1.0 / self.output_interval,
+            "frame_rate": self.trajectory_rate,
+            "trajectory_frames": self._traj_frame,
             "time_split_s": {"forces": tm.forces, "settle": tm.settle, "routing": tm.routing},
         }
 

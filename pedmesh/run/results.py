@@ -42,8 +42,22 @@ class RunResult:
         return self.summary["model"]
 
     @property
+    def status(self) -> str | None:
+        """The recorded status, except that a run whose process is gone while its summary
+        still says ``running`` (killed) reads as ``interrupted``."""
+        from .output import run_status
+
+        return run_status(self.path, self.summary)
+
+    @property
     def finished(self) -> bool:
-        return self.summary.get("status") in ("finished", "stopped at t_end")
+        return self.status in ("finished", "stopped at t_end")
+
+    @property
+    def settings(self) -> dict:
+        """What the run was asked to do (see :func:`pedmesh.run.driver.run_settings`);
+        empty for runs written before settings were recorded."""
+        return dict(self.summary.get("settings") or {})
 
     @cached_property
     def evacuation(self) -> tuple[np.ndarray, np.ndarray]:

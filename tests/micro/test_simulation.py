@@ -158,7 +158,7 @@ def test_blow_up_stops_with_a_message_and_keeps_output(load_shipped, tmp_path):
                   overrides={"max_speed": 0.5})
     s = json.loads((tmp_path / "summary.json").read_text())
     assert s["status"] == "failed" and "blow-up" in s["error"]
-    assert (tmp_path / "evacuation.csv").read_text().startswith("t,evacuated\n0.0000,0")
+    assert (tmp_path / "evacuation.csv").read_text().startswith("t,evacuated\n0.000000,0")
 
 
 def test_stop_request_ends_the_run_after_the_step(load_shipped, tmp_path, monkeypatch):
@@ -171,8 +171,8 @@ def test_stop_request_ends_the_run_after_the_step(load_shipped, tmp_path, monkey
     calls = {"n": 0}
     orig = models.SFMRun.step
 
-    def step(self):
-        orig(self)
+    def step(self, *args):
+        orig(self, *args)
         calls["n"] += 1
         if calls["n"] == 300:
             request_stop()
@@ -198,11 +198,11 @@ def test_interrupted_run_keeps_output(load_shipped, tmp_path, monkeypatch):
     calls = {"n": 0}
     orig = models.SFMRun.step
 
-    def step(self):
+    def step(self, *args):
         calls["n"] += 1
         if calls["n"] == 700:
             raise KeyboardInterrupt
-        orig(self)
+        orig(self, *args)
 
     monkeypatch.setattr(models.SFMRun, "step", step)
     with pytest.raises(RunInterrupted, match="interrupted at t = 6.99 s"):

@@ -23,6 +23,7 @@ import math
 from ...errors import ParameterError
 from .barotropic import BarotropicModel, PressureLaw
 from .base import register_macro_model
+from .eos_file import DEFAULT_EOS, load_eos
 
 __all__ = ["EquationOfStateModel"]
 
@@ -36,7 +37,6 @@ class EquationOfStateModel(BarotropicModel):
     def __init__(self, calibration: str | None = None, *, U_f: float = 1.034,
                  beta: float = 0.05, tau: float = 0.5, rho_cut: float = 1e-3,
                  u_max: float | None = None, **sfm) -> None:
-        from ...calibration import DEFAULT_EOS, load_eos
         from ...micro.params import SocialForceParams
 
         unknown = set(sfm) - set(SFM_KEYS)
