@@ -27,6 +27,7 @@ _LAZY = {
     "solve_eikonal": "pedmesh.eikonal",
     "EikonalSolver": "pedmesh.eikonal",
     "DirectionField": "pedmesh.eikonal",
+    "ensemble": "pedmesh.ensembles",
 }
 
 
@@ -44,6 +45,7 @@ __all__ = [
     "__version__",
     "DirectionField",
     "EikonalSolver",
+    "ensemble",
     "solve_eikonal",
     "BoundaryKind",
     "Exit",

@@ -20,6 +20,7 @@ SUBCOMMANDS = {
     "run": "pedmesh.cli.run",
     "compare": "pedmesh.cli.compare",
     "calibrate": "pedmesh.cli.calibrate",
+    "ensemble": "pedmesh.cli.ensemble",
 }
 
 

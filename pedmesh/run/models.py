@@ -37,6 +37,8 @@ class SFMRun:
     """The social force model behind the shared run contract
     (:class:`~pedmesh.run.protocol.RunModel`).
 
+    ``seed`` (an integer) moves the start lattice at random, repeatably
+    (:func:`pedmesh.micro.placement.seeded_positions`); without it the lattice is used.
     ``trajectory_rate`` [frames/s] is the rate of trajectories.txt / trajectories.sqlite
     (default 10): frame k holds every pedestrian inside at the first step at or after
     t = k / rate, and each pedestrian who left since the previous frame once more, at the
@@ -46,7 +48,8 @@ class SFMRun:
     name = "sfm"
 
     def __init__(self, room, mesh, overrides: dict[str, float], *, static_routes: bool = False,
-                 positions: np.ndarray | None = None, trajectory_rate: float = 10.0) -> None:
+                 positions: np.ndarray | None = None, trajectory_rate: float = 10.0,
+                 seed: int | None = None) -> None:
         from ..micro import SFMNumerics, Simulation, SocialForceParams
         from ..micro.params import with_overrides
 
@@ -58,6 +61,14 @@ class SFMRun:
         if rate * self.numerics.dt > 1.0 + 1e-9:
             raise ParameterError(f"trajectory rate {rate:g} /s is above one frame per time "
                                  f"step (dt = {self.numerics.dt:g} s)")
+        if seed is not None and positions is None:
+            from ..micro.placement import seeded_positions
+
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+                raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
+            positions = seeded_positions(room if room is not None else mesh.room, int(seed),
+                                         radius=self.params.r)
+        self.seed = seed
         self.sim = Simulation(mesh, positions, params=self.params, numerics=self.numerics,
                               reroute=not static_routes)
         self.mesh = mesh
@@ -110,7 +121,8 @@ class SFMRun:
         from dataclasses import asdict
 
         return {**asdict(self.params), **asdict(self.numerics),
-                "reroute": not self.static_routes, "trajectory_rate": self.trajectory_rate}
+                "reroute": not self.static_routes, "trajectory_rate": self.trajectory_rate,
+                "seed": self.seed}
 
     def exit_counts(self) -> np.ndarray:
         """Pedestrians [ped] who crossed each exit so far."""
