@@ -25,6 +25,9 @@ def add_mesh_args(p: argparse.ArgumentParser) -> None:
                    help="smallest triangle angle in degrees (default: 30, at most 34)")
     p.add_argument("--exit-size", type=float, default=None, metavar="H",
                    help="grade the mesh to edges of about H m at the exits (default: uniform)")
+    p.add_argument("--max-cells", type=float, default=None, metavar="N",
+                   help="refuse meshes estimated to have more than N triangles "
+                        "(default: 2000000; 'inf' for no limit)")
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
@@ -40,7 +43,7 @@ def mesh_from_args(args: argparse.Namespace):
 
     room = load_room(args.geometry)
     return room, room.mesh(max_area=args.max_area, min_angle=args.min_angle,
-                           exit_size=args.exit_size)
+                           exit_size=args.exit_size, max_cells=args.max_cells)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -33,6 +33,7 @@ import shapely
 from shapely.geometry import LinearRing, LineString, Point, Polygon
 
 from ..errors import GeometryError
+from .tolerances import EXIT_TOLERANCE
 
 __all__ = [
     "EXIT_TOLERANCE",
@@ -45,10 +46,6 @@ __all__ = [
     "Room",
 ]
 
-#: Largest distance [m] between an exit (or a start/measurement element) and the boundary
-#: (or walkable area) it must lie on. Exit vertices closer than this to the boundary are
-#: projected onto it when the room is meshed.
-EXIT_TOLERANCE = 1e-6
 
 Points = tuple[tuple[float, float], ...]
 
@@ -542,9 +539,11 @@ class Room:
         exit_size: float | None = None,
         size_growth: float = 0.2,
         size: Any = None,
+        max_cells: float | None = None,
     ):
-        """Triangulate the walkable area; see :func:`pedmesh.mesh.triangulate`."""
-        from ..mesh.triangulate import triangulate
+        """Triangulate the walkable area; see :func:`pedmesh.mesh.triangulate`
+        (``max_cells`` None: its default limit)."""
+        from ..mesh.triangulate import MAX_CELLS, triangulate
 
         return triangulate(
             self,
@@ -553,6 +552,7 @@ class Room:
             exit_size=exit_size,
             size_growth=size_growth,
             size=size,
+            max_cells=MAX_CELLS if max_cells is None else max_cells,
         )
 
     def with_changes(self, **changes: Any) -> "Room":
