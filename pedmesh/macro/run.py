@@ -72,11 +72,22 @@ class MacroRun:
             "fv": {f.name for f in fields(FVOptions)},
             "run": {f.name for f in fields(MacroRunOptions)},
         })
-        for k in ("order",):
-            if k in parts["fv"]:
-                parts["fv"][k] = int(parts["fv"][k])
-        if "limiter" in parts["fv"]:
-            parts["fv"]["limiter"] = bool(parts["fv"]["limiter"])
+        fv = parts["fv"]
+        for k, v in list(fv.items()):
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isfinite(v):
+                raise ParameterError(f"parameter '{k}' must be a finite number, got {v!r}")
+        if "order" in fv:
+            v = fv["order"]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or v not in (1, 2, 3):
+                raise ParameterError(f"parameter 'order' must be 1, 2 or 3, got {v!r}")
+            fv["order"] = int(v)
+        for k in ("limiter", "route_every_step"):
+            if k in fv:
+                v = fv[k]
+                if v not in (0, 1) or isinstance(v, str):
+                    raise ParameterError(f"parameter '{k}' must be 0 or 1 (off or on), "
+                                         f"got {v!r}")
+                fv[k] = bool(v)
         self.model = macro_model(model, **parts["model"])
         self.fv_options = FVOptions(**parts["fv"])
         self.options = MacroRunOptions(**parts["run"])
@@ -122,7 +133,8 @@ class MacroRun:
         return self.remaining < self.options.empty_below
 
     def step(self, t_limit: float = math.inf) -> None:
-        self.controller.advance()
+        """One step, shortened to end exactly on ``t_limit`` [s] if it would pass it."""
+        self.controller.advance(t_limit if math.isfinite(t_limit) else None)
         self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
         self._curve_t.append(self.state.t)
         self._curve_n.append(self.evacuated)

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -53,8 +54,11 @@ class FVOptions:
             raise ParameterError(f"parameter 'order' must be 1, 2 or 3, got {self.order!r}")
         if self.cfl is not None and not (0 < self.cfl <= 1):
             raise ParameterError(f"parameter 'cfl' must be in (0, 1], got {self.cfl!r}")
-        if not self.eps_hat > 0:
+        if not (math.isfinite(self.eps_hat) and self.eps_hat > 0):
             raise ParameterError(f"parameter 'eps_hat' must be positive, got {self.eps_hat!r}")
+        if not (math.isfinite(self.rho_eps) and self.rho_eps >= 0):
+            raise ParameterError(f"parameter 'rho_eps' must be >= 0 [ped/m^2], got "
+                                 f"{self.rho_eps!r}")
 
 
 @dataclass
@@ -422,16 +426,24 @@ class FVController:
     def advance(self, t_stop: float | None = None) -> float:
         """One step (no further than ``t_stop``); returns the step length [s].
 
-        A step whose stage outruns its forward-Euler bound is taken again with ``cfl`` times
-        that bound (and at most 0.9 of the rejected length); the state is only replaced by a
+        A step that would pass ``t_stop`` is shortened to end on it exactly (``state.t ==
+        t_stop`` afterwards); one that would stop short of it by less than a tenth of a step
+        is halved, so that the next one lands on it without a sliver of a step. A step
+        whose stage outruns its forward-Euler bound is taken again with ``cfl`` times that
+        bound (and at most 0.9 of the rejected length); the state is only replaced by a
         completed step."""
         s = self.solver
         s.update_route(self.state.Q)
         dt = s.max_dt(self.state.Q, self.state.t)
         if not np.isfinite(dt) or dt <= 0:
             dt = 1e-2
-        if t_stop is not None:
-            dt = min(dt, max(t_stop - self.state.t, 1e-12))
+        land = False
+        if t_stop is not None and math.isfinite(t_stop):
+            rest = t_stop - self.state.t
+            if rest <= dt:
+                dt, land = max(rest, 1e-12), True
+            elif rest < 1.1 * dt:
+                dt = 0.5 * rest
         for _ in range(40):
             try:
                 s.step(self.state, dt)
@@ -439,9 +451,12 @@ class FVController:
             except StageTooLong as e:
                 self.retried += 1
                 dt = min(s.cfl * e.dt_fe, 0.9 * dt)
+                land = False
         else:
             raise SimulationError(
                 f"no stable time step found at t = {self.state.t:.3f} s (last tried {dt:.3g} s)")
+        if land:
+            self.state.t = float(t_stop)  # t + (t_stop - t) can miss t_stop by an ulp
         self.dt_last = dt
         return dt
 

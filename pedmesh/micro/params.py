@@ -118,6 +118,8 @@ def parse_param_overrides(items: Iterable[str]) -> dict[str, float | str]:
             out[name] = float(value)
         except ValueError:
             raise ParameterError(f"parameter '{name}': '{value}' is not a number") from None
+        if not math.isfinite(out[name]):
+            raise ParameterError(f"parameter '{name}' must be a finite number, got {value.strip()}")
     return out
 
 

@@ -245,3 +245,38 @@ def test_compare_reruns_when_settings_differ(geometries_dir, tmp_path, capsys):
     assert main(["compare", str(other), "--models", "sfm", "--out", str(out),
                  "--t-end", "3"]) == 0
     assert "room_sha256 differs" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("model", ["rdue", "pw"])
+def test_continuum_frames_at_the_requested_times(geometries_dir, tmp_path, model):
+    from pedmesh.io import read_pvd_index
+
+    out = tmp_path / model
+    assert main(["run", str(geometries_dir / "l_shaped.json"), "--model", model, "--out",
+                 str(out), "-q", "--t-end", "4.5", "--param", "output_interval=0.5",
+                 "--max-area", "2"]) == 0
+    times = [t for t, _ in read_pvd_index(out / "density.pvd")]
+    assert times == [0.5 * k for k in range(10)]  # exactly, the last one at t_end
+    s = json.loads((out / "summary.json").read_text())
+    assert s["t_stop"] == 4.5 and s["mass_error_max"] < 1e-12
+
+
+def test_step_limit_lands_exactly_and_never_overshoots(load_shipped):
+    from pedmesh.macro.run import MacroRun
+    from pedmesh.run.models import MODELS
+
+    room = load_shipped("l_shaped.json")
+    mesh = room.mesh(max_area=2.0)
+    run = MODELS["pw"](room, mesh, {})
+    ref = MODELS["pw"](room, mesh, {})
+    assert isinstance(run, MacroRun)
+    targets = [0.37, 0.5, 1.0, 1.01, 2.0]
+    for target in targets:
+        while run.t < target:
+            before = run.t
+            run.step(target)
+            assert before < run.t <= target
+        assert run.t == target
+    for _ in range(5):  # without a limit: the CFL step, as before
+        ref.step()
+    assert ref.t > 0.37 and abs(ref.remaining + ref.evacuated - ref.n_initial) < 1e-9
