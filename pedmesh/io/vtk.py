@@ -89,9 +89,19 @@ def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None)
     cloud = pv.PolyData(np.column_stack([pts, np.zeros(len(pts))]))
     if len(pts):
         cloud.verts = np.column_stack([np.ones(len(pts), np.int64), np.arange(len(pts))]).ravel()
-    if len(pts):  # (VTK cannot hold empty arrays: an empty frame has no fields)
-        for k, v in (point_data or {}).items():
-            cloud.point_data[k] = _pad3(v)
+    for k, v in (point_data or {}).items():
+        v = _pad3(v)
+        if len(pts):
+            cloud.point_data[k] = v
+        else:  # an empty frame keeps every array (name, type, components) with no rows
+            from vtkmodules.util.numpy_support import get_vtk_array_type
+            from vtkmodules.vtkCommonCore import vtkDataArray
+
+            arr = vtkDataArray.CreateDataArray(get_vtk_array_type(np.asarray(v).dtype))
+            arr.SetNumberOfComponents(int(np.prod(np.shape(v)[1:], dtype=np.int64)) or 1)
+            arr.SetNumberOfTuples(0)
+            arr.SetName(k)
+            cloud.GetPointData().AddArray(arr)
     path = Path(path)
     tmp = path.with_name(path.stem + ".part.vtp")
     cloud.save(tmp, binary=True)

@@ -95,3 +95,22 @@ def test_pvd_index_valid_after_each_frame(mesh, tmp_path):
 def test_field_length_is_checked(mesh, tmp_path):
     with pytest.raises(ValueError, match="cell field 'rho'"):
         write_vtu(tmp_path / "x.vtu", mesh, cell_data={"rho": np.zeros(3)})
+
+
+def test_empty_point_frame_keeps_its_arrays(tmp_path):
+    """The last pedestrians frame (everyone out) has the same arrays as the others, with
+    no rows, so that ParaView's filters find them in every frame."""
+    import pyvista as pv
+
+    from pedmesh.io.vtk import write_vtp
+
+    data = {"id": np.arange(3, dtype=np.int64), "velocity": np.ones((3, 2)),
+            "speed": np.ones(3), "density": np.full(3, 2.0)}
+    full = pv.read(write_vtp(tmp_path / "full.vtp", np.zeros((3, 2)), data))
+    empty = pv.read(write_vtp(tmp_path / "empty.vtp", np.zeros((0, 2)),
+                              {k: v[:0] for k, v in data.items()}))
+    assert empty.n_points == 0
+    assert set(empty.point_data.keys()) == set(full.point_data.keys()) == set(data)
+    for k in data:
+        assert empty.point_data[k].shape[1:] == full.point_data[k].shape[1:]
+        assert empty.point_data[k].dtype == full.point_data[k].dtype
