@@ -1,0 +1,69 @@
+"""The ParaView steps of the README, run by ParaView itself (docs/paraview_check.py under
+pvbatch). Skipped where ParaView or xvfb-run is not installed (apt-get install paraview
+xvfb)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from pedmesh.cli import main
+
+SCRIPT = Path(__file__).resolve().parents[2] / "docs" / "paraview_check.py"
+pytestmark = pytest.mark.skipif(
+    shutil.which("pvbatch") is None or shutil.which("xvfb-run") is None,
+    reason="ParaView's pvbatch and xvfb-run are not installed")
+
+
+def _pvbatch(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["xvfb-run", "-a", "pvbatch", str(SCRIPT), *args],
+                          capture_output=True, text=True, timeout=180)
+
+
+def _picture_has_content(png: Path, colours: int = 50):
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(png)
+    assert img.shape[0] >= 500 and img.shape[1] >= 900
+    assert len({tuple(px) for px in img[::7, ::7, :3].reshape(-1, 3)}) > colours  # not blank
+    return img
+
+
+@pytest.mark.parametrize(("model", "field", "extra"), [
+    ("sfm", "density", ["--t-end", "20"]),
+    ("rdue", "rho", ["--t-end", "10", "--max-area", "2"]),
+])
+def test_paraview_renders_a_run(geometries_dir, tmp_path, model, field, extra):
+    run = tmp_path / model
+    assert main(["run", str(geometries_dir / "l_shaped.json"), "--model", model, "--out",
+                 str(run), "-q", *extra]) == 0
+    png = tmp_path / "view.png"
+    r = _pvbatch(str(run), str(png))
+    assert r.returncode == 0, r.stderr
+    line = r.stdout.strip().splitlines()[-1]
+    assert f"{field} in [0, " in line
+    hi = float(line.split(f"{field} in [0, ")[1].split("]")[0])
+    assert hi > 0.5
+    if model == "sfm":
+        assert line.endswith("pedestrians") and int(line.split("; ")[1].split()[0]) > 0
+    _picture_has_content(png)
+
+
+def test_paraview_shows_the_mesh_exits(geometries_dir, tmp_path):
+    mesh = tmp_path / "hall.vtu"
+    assert main(["mesh", str(geometries_dir / "pillar_hall.json"), "-o", str(mesh)]) == 0
+    r = _pvbatch("--mesh", str(mesh), str(tmp_path / "mesh.png"))
+    assert r.returncode == 0, r.stderr
+    n_exit = int(r.stdout.strip().splitlines()[-1].split(", ")[1].split()[0])
+    assert n_exit > 0
+    img = _picture_has_content(tmp_path / "mesh.png", colours=3)
+    green = (img[..., 0] < 0.1) & (img[..., 1] > 0.5) & (img[..., 2] < 0.1)
+    assert green.sum() > 20  # the exits, drawn in green
+
+
+def test_paraview_check_names_a_missing_run(tmp_path):
+    r = _pvbatch(str(tmp_path / "nothing"), str(tmp_path / "x.png"))
+    assert r.returncode == 2 and "no density.pvd" in r.stderr
