@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import shutil
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -19,8 +20,15 @@ pytestmark = pytest.mark.skipif(
 
 
 def _pvbatch(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["xvfb-run", "-a", "pvbatch", str(SCRIPT), *args],
-                          capture_output=True, text=True, timeout=180)
+    """Run the script under xvfb-run; again (up to 3 times) when the virtual X server was
+    not ready ('bad X server connection'), a race of xvfb-run's, not of the script."""
+    for _ in range(3):
+        r = subprocess.run(["xvfb-run", "-a", "-s", "-screen 0 1280x1024x24", "pvbatch",
+                            str(SCRIPT), *args], capture_output=True, text=True, timeout=180)
+        if r.returncode == 0 or "X server" not in r.stderr:
+            return r
+        time.sleep(1.0)
+    return r
 
 
 def _picture_has_content(png: Path, colours: int = 50):
