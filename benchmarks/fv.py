@@ -33,14 +33,16 @@ PARAMS = {"rdue": {"U_f", "beta"}, "pw": {"c0", "U_f", "beta", "tau", "rho_cut",
 def residual_cost(repeats: int = 21):
     rows = []
     for target in (10_000, 40_000, 160_000):
-        room = Room([(0, 0), (100, 0), (100, 50), (0, 50)], exits=[Exit("e", [(100, 20), (100, 30)])])
+        room = Room([(0, 0), (100, 0), (100, 50), (0, 50)],
+                    exits=[Exit("e", [(100, 20), (100, 30)])])
         # quality meshing (min angle 30 deg) makes about 1.58x as many triangles as area/max_area
         mesh = room.mesh(max_area=1.58 * 5000.0 / target)
         for name in ("pw", "rdue"):
             model = macro_model(name)
             s = FVSolver(mesh, model, FVOptions())
             x = mesh.centroids[:, 0]
-            Q = model.initial_state(1.0 + 0.5 * np.sin(x / 7.0) * np.cos(mesh.centroids[:, 1] / 5.0))
+            Q = model.initial_state(1.0 + 0.5 * np.sin(x / 7.0)
+                                    * np.cos(mesh.centroids[:, 1] / 5.0))
             if name == "pw":
                 Q[:, 1] = 0.3 * Q[:, 0]
             s.update_route(Q)

@@ -42,7 +42,8 @@ MODELS = {
     "example2": "sfm,mac1,rdue,pw:c0=0.5,pw:c0=1,pw:c0=2,mac2-local,eos,eos:exit=vacuum",
     "example3": "sfm,mac1,rdue,mac2-local,eos",
 }
-DENSITY_TIMES = {"example1": [30, 50, 70], "example2": [30, 50, 70, 90], "example3": [30, 50, 80, 100]}
+DENSITY_TIMES = {"example1": [30, 50, 70], "example2": [30, 50, 70, 90],
+                 "example3": [30, 50, 80, 100]}
 QUICK = {"example1": "sfm,rdue", "example2": "sfm,rdue", "example3": "sfm,rdue"}
 
 
@@ -231,15 +232,17 @@ def results_md(results: dict, out: Path, wall: dict | None = None) -> str:
         lines += [f"The continuum runs used CFL {', '.join(f'{c:g}' for c in cfls)} "
                   "(`cfl` in each run's summary.json).", ""]
     lines += ["## Evacuation times", "",
-              "| example | model | T50 | T90 | T100 | first 1 % out | curve distance | outflow distance | steps | wall [s] |",
+              "| example | model | T50 | T90 | T100 | first 1 % out | curve distance "
+              "| outflow distance | steps | wall [s] |",
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for ex, (_, _, cmp) in results.items():
         for row in cmp.rows:
             r = cmp.runs[row["label"]]
             lines.append(
                 f"| {ex[-1]} | {row['label']} | {_f(row['t_evac_50'])} | {_f(row['t_evac_90'])} | "
-                f"{_f(row['t_evac_100'])} | {_f(_first_out(r))} | {_f(row['evac_curve_distance'], 4)} | "
-                f"{_f(row.get('outflow_distance'), 3)} | {row['steps']} | {_f(row['wall_time_s'], 0)} |")
+                f"{_f(row['t_evac_100'])} | {_f(_first_out(r))} | "
+                f"{_f(row['evac_curve_distance'], 4)} | {_f(row.get('outflow_distance'), 3)} | "
+                f"{row['steps']} | {_f(row['wall_time_s'], 0)} |")
     lines += ["", "## The paper's claims", ""]
     # claim 1: ordering of the examples
     def t_of(ex, model, key):
@@ -262,13 +265,16 @@ def results_md(results: dict, out: Path, wall: dict | None = None) -> str:
         if "mac1" in rows and "sfm" in rows:
             d = rows["mac1"]["evac_curve_distance"]
             dt90 = rows["mac1"]["dT90_s"]
+            verdict = ("confirmed (within 5 %)" if d < 0.05
+                       else "NOT confirmed (more than 5 % apart)")
             lines.append(f"* **SFM and mac1 give comparable evacuation curves** ({ex}): mean "
                          f"|N_mac1 - N_sfm|/N = {d:.3f}, T90 differs by {_f(dt90)} s: "
-                         f"{'confirmed (within 5 %)' if d < 0.05 else 'NOT confirmed (more than 5 % apart)'}.")
+                         f"{verdict}.")
             od = rows["mac1"].get("outflow_distance")
             if od is not None:
-                lines.append(f"* **their outflow curves nearly overlap** ({ex}): relative distance "
-                             f"{od:.3f}: {'confirmed' if od < 0.15 else 'NOT confirmed'} (criterion 15 %).")
+                lines.append(f"* **their outflow curves nearly overlap** ({ex}): relative "
+                             f"distance {od:.3f}: "
+                             f"{'confirmed' if od < 0.15 else 'NOT confirmed'} (criterion 15 %).")
     if "example2" in results:
         runs = results["example2"][2].runs
         t_sfm = _first_out(runs["sfm"]) if "sfm" in runs else None
@@ -287,7 +293,8 @@ def results_md(results: dict, out: Path, wall: dict | None = None) -> str:
                 parts.append(f"{lab} {_f(t1)} s")
             lines.append(f"* **continuum models other than RDUE start evacuating earlier than the "
                          f"SFM** (Example 2, time to the first 1 % out; sfm {t_sfm:.1f} s; "
-                         f"{', '.join(parts)}): {'confirmed' if verdict else 'NOT confirmed for every model'}.")
+                         f"{', '.join(parts)}): "
+                         f"{'confirmed' if verdict else 'NOT confirmed for every model'}.")
     lines += extent_section(results)
     lines += eos_section(results)
     text = "\n".join(lines) + "\n"
@@ -303,7 +310,8 @@ def eos_section(results: dict) -> list[str]:
     lines = ["", "## The calibrated continuum model (eos) against the SFM", "",
              "Deviation from the SFM of the same example: (T - T_sfm)/T_sfm for T50 and T90, "
              "mean |N_out(t) - N_sfm(t)|/N for the curve; criteria for eos: 3 %, 3 %, 1.5 %.",
-             "", "| example | model | exit | dT50 | dT90 | curve distance | max mass error | meets the eos criteria |",
+             "", "| example | model | exit | dT50 | dT90 | curve distance | max mass error "
+             "| meets the eos criteria |",
              "|---|---|---|---:|---:|---:|---:|---|"]
     verdicts = []
     for ex, (_, _, cmp) in results.items():
@@ -322,12 +330,13 @@ def eos_section(results: dict) -> list[str]:
             me = summ.get("mass_error_max")
             if lab == "eos":
                 verdicts.append(ok)
-            lines.append(f"| {ex[-1]} | {lab} | {summ.get('exit_condition', '-')} | {100 * d50:+.1f} % | "
-                         f"{100 * d90:+.1f} % | {100 * cd:.2f} % | {_f(me, 1) if me is None else f'{me:.1e}'} | "
+            mass = _f(me, 1) if me is None else f"{me:.1e}"
+            lines.append(f"| {ex[-1]} | {lab} | {summ.get('exit_condition', '-')} | "
+                         f"{100 * d50:+.1f} % | {100 * d90:+.1f} % | {100 * cd:.2f} % | {mass} | "
                          f"{'yes' if ok else 'no'} |")
     if verdicts:
-        lines += ["", f"**eos with the shipped calibration and the exact exit meets the criteria on "
-                      f"{sum(verdicts)} of {len(verdicts)} examples.**"]
+        lines += ["", "**eos with the shipped calibration and the exact exit meets the criteria "
+                  f"on {sum(verdicts)} of {len(verdicts)} examples.**"]
     cal = load_eos()
     lines += ["", "### The measured equation of state (shipped calibration)", "",
               "| rho [ped/m^2] | p measured [ped/s^2] | standard error | gamma1 rho^2/2 | ratio |",
@@ -335,10 +344,11 @@ def eos_section(results: dict) -> list[str]:
     for r in cal["table"]:
         lines.append(f"| {r['rho']:g} | {r['p']:.3e} | {r['p_err']:.1e} | {r['mean_field']:.3e} | "
                      f"{r['p'] / r['mean_field']:.2e} |")
-    lines += ["", f"gamma1 = {cal['gamma1']:.4f} m^4/s^2; measured in {cal['options']['n']}-pedestrian "
-                  f"periodic boxes, {cal['options']['replicas']} replicas, "
-                  f"{cal['options']['relax_time']:g} s relaxation + {cal['options']['sample_time']:g} s "
-                  "averaging. The flowing-crowd check is in `eos_flowing_check.md`."]
+    opts = cal["options"]
+    lines += ["", f"gamma1 = {cal['gamma1']:.4f} m^4/s^2; measured in {opts['n']}-pedestrian "
+              f"periodic boxes, {opts['replicas']} replicas, {opts['relax_time']:g} s "
+              f"relaxation + {opts['sample_time']:g} s averaging. The flowing-crowd check is "
+              "in `eos_flowing_check.md`."]
     return lines
 
 

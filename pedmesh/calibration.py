@@ -273,7 +273,8 @@ def measure_pressure(rho: float, params: SocialForceParams | None = None,
     per = np.array(per)
     kin = np.array(kin)
     tot = per + kin
-    return {"rho": rho, "p": float(tot.mean()), "p_err": float(tot.std(ddof=1) / math.sqrt(len(tot))),
+    return {"rho": rho, "p": float(tot.mean()),
+            "p_err": float(tot.std(ddof=1) / math.sqrt(len(tot))),
             "p_virial": float(per.mean()), "p_kinetic": float(kin.mean()),
             "mean_field": None}
 

@@ -1,5 +1,5 @@
-"""Ensembles and parameter studies on Dask (:func:`pedmesh.ensemble`): many runs of one room, from a laptop to a
-cluster, with the same call.
+"""Ensembles and parameter studies on Dask (:func:`pedmesh.ensemble`): many runs of one
+room, from a laptop to a cluster, with the same call.
 
 A social force run is one sample: its start positions are random (see
 :func:`pedmesh.micro.placement.seeded_positions`), so an evacuation time means something

@@ -38,8 +38,10 @@ def mirrored_mesh():
 
     from pedmesh import Exit, Room, StartArea, TriMesh
 
-    half = Room([(0, 25), (100, 25), (100, 50), (0, 50)], exits=[Exit("exit", [(100, 25), (100, 30)])],
-                start_areas=[StartArea("block", [(0, 25), (48, 25), (48, 50), (0, 50)], spacing=1.0)])
+    half = Room([(0, 25), (100, 25), (100, 50), (0, 50)],
+                exits=[Exit("exit", [(100, 25), (100, 30)])],
+                start_areas=[StartArea("block", [(0, 25), (48, 25), (48, 50), (0, 50)],
+                                       spacing=1.0)])
     m = half.mesh(max_area=2.0)
     p = m.points
     n = len(p)

@@ -14,7 +14,8 @@ from pedmesh.cli import main
 
 def test_mesh_command_summary_and_vtu(geometries_dir, tmp_path, capsys):
     out = tmp_path / "sub" / "ex3.vtu"
-    assert main(["mesh", str(geometries_dir / "example3.json"), "--max-area", "2", "-o", str(out)]) == 0
+    assert main(["mesh", str(geometries_dir / "example3.json"), "--max-area", "2", "-o",
+                 str(out)]) == 0
     text = capsys.readouterr().out
     for part in ("vertices", "triangles", "smallest", "exit-south 10.000 m", "exit-north 10.000 m",
                  "4800.000 m^2", "2400 in 1 start area"):
@@ -52,7 +53,8 @@ def test_console_script_runs(geometries_dir):
 
 def test_route_command(geometries_dir, tmp_path, capsys):
     out = tmp_path / "route.vtu"
-    assert main(["route", str(geometries_dir / "example3.json"), "--max-area", "2", "-o", str(out)]) == 0
+    assert main(["route", str(geometries_dir / "example3.json"), "--max-area", "2", "-o",
+                 str(out)]) == 0
     text = capsys.readouterr().out
     assert "solve" in text and "distance to exit" in text
     m = meshio.read(out)

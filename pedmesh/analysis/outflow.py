@@ -33,7 +33,8 @@ def continuum_outflow(*, mesh, rho: np.ndarray, velocity: np.ndarray) -> np.ndar
     return out
 
 
-def particle_outflow(*, mesh, positions: np.ndarray, velocities: np.ndarray, R: float = 0.7) -> np.ndarray:
+def particle_outflow(*, mesh, positions: np.ndarray, velocities: np.ndarray,
+                     R: float = 0.7) -> np.ndarray:
     """Outflow [ped/s] through each exit of a particle crowd, from the kernel density and the
     kernel-averaged velocity at the exit (the paper's definition for the particle model)."""
     out = np.zeros(len(mesh.exit_names))

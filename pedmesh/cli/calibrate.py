@@ -91,5 +91,6 @@ def run(args: argparse.Namespace) -> int:
         for r in cal["table"]:
             print(f"  {r['rho']:12.2f} {r['p']:13.4e} {r['p_err']:10.1e} {r['mean_field']:18.4e}"
                   f" {r['p'] / r['mean_field']:11.2e}")
-    print(f"calibration of {len(cal['table'])} densities in {cal['seconds']:.0f} s written to {out}")
+    print(f"calibration of {len(cal['table'])} densities in {cal['seconds']:.0f} s "
+          f"written to {out}")
     return 0

@@ -58,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"  walkable area   {room.area:.3f} m^2 (mesh: {s['area_m2']:.3f} m^2)")
     print(f"  vertices        {s['vertices']}")
     print(f"  triangles       {s['triangles']}")
-    print(f"  angles          smallest {s['min_angle_deg']:.2f} deg, largest {s['max_angle_deg']:.2f} deg")
+    print(f"  angles          smallest {s['min_angle_deg']:.2f} deg, "
+          f"largest {s['max_angle_deg']:.2f} deg")
     print(f"  cell size       {s['h_m']:.3f} m (square root of the mean triangle area)")
     print(f"  exits           {exits}")
     print(f"  obstacles       {len(room.obstacles)}")

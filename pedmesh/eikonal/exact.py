@@ -26,7 +26,8 @@ __all__ = ["geodesic_distance", "reflex_corners"]
 def reflex_corners(room) -> np.ndarray:
     """(k, 2) boundary corners a shortest path can bend at [m]."""
     out = []
-    rings = [(np.asarray(room.outline), True)] + [(np.asarray(o.polygon), False) for o in room.obstacles]
+    rings = [(np.asarray(room.outline), True)] + [(np.asarray(o.polygon), False)
+                                                  for o in room.obstacles]
     for pts, outer in rings:
         ccw = shapely.LinearRing(pts).is_ccw
         n = len(pts)

@@ -193,9 +193,9 @@ class StartArea:
     square lattice anchored at the polygon's lower-left bounding-box corner plus half a
     spacing (so the paper's 48 x 50 m block at 1 m spacing gives the 2400 points
     (i - 0.5, j - 0.5)); lattice points outside the polygon are dropped. A room requires its
-    start areas to lie in the walkable area (not overlapping obstacles). ``density`` uses the spacing ``1/sqrt(density)``; ``count`` shrinks the spacing
-    from ``sqrt(area/count)`` until enough points fit and keeps ``count`` of them, evenly
-    spread over the lattice order.
+    start areas to lie in the walkable area (not overlapping obstacles). ``density`` uses the
+    spacing ``1/sqrt(density)``; ``count`` shrinks the spacing from ``sqrt(area/count)`` until
+    enough points fit and keeps ``count`` of them, evenly spread over the lattice order.
 
     Parameters
     ----------

@@ -50,7 +50,8 @@ def mesh_to_meshio(mesh, point_data: ArrayMap = None, cell_data: ArrayMap = None
     cd = {k: [_pad3(v)] for k, v in (cell_data or {}).items()}
     for k, v in (cell_data or {}).items():
         if len(v) != mesh.n_triangles:
-            raise ValueError(f"cell field '{k}' has {len(v)} values for {mesh.n_triangles} triangles")
+            raise ValueError(f"cell field '{k}' has {len(v)} values for {mesh.n_triangles} "
+                             "triangles")
     for k, v in (point_data or {}).items():
         if len(v) != mesh.n_points:
             raise ValueError(f"point field '{k}' has {len(v)} values for {mesh.n_points} vertices")

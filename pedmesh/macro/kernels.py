@@ -33,7 +33,8 @@ class SFMRepulsion:
 
     def __call__(self, r):
         r = np.asarray(r, float)
-        return (self.A * np.exp((self.r_ij - r) / self.B) + self.k * np.maximum(self.r_ij - r, 0.0)) / self.m
+        return (self.A * np.exp((self.r_ij - r) / self.B) + self.k
+                * np.maximum(self.r_ij - r, 0.0)) / self.m
 
     @property
     def support(self) -> float:
@@ -138,7 +139,8 @@ class RadialTables:
 
     @classmethod
     def build(cls, phi, psi, dr: float = 2e-5) -> "RadialTables":
-        r_max = max(phi.support if phi is not None else 0.0, psi.support if psi is not None else 0.0)
+        r_max = max(phi.support if phi is not None else 0.0,
+                    psi.support if psi is not None else 0.0)
         r_max = float(min(r_max, 3.0)) + 10 * dr
         r = np.arange(0.0, r_max + dr / 2, dr)
         n = len(r)

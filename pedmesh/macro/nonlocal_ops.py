@@ -553,7 +553,8 @@ class LongRangeOperator:
         rows = np.repeat(np.arange(mesh.n_triangles), 4)
         cols = np.stack([i0 * ny + j0, (i0 + 1) * ny + j0, i0 * ny + j0 + 1,
                          (i0 + 1) * ny + j0 + 1], axis=1).ravel()
-        vals = np.stack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty], axis=1).ravel()
+        vals = np.stack([(1 - tx) * (1 - ty), tx * (1 - ty), (1 - tx) * ty, tx * ty],
+                        axis=1).ravel()
         self.B = sp.csr_matrix((vals, (rows, cols)), shape=(mesh.n_triangles, nx * ny))
         self.BT = self.B.T.tocsr()
         # kernel on the padded grid of offsets
@@ -577,7 +578,8 @@ class LongRangeOperator:
 
     def _grid(self, q: np.ndarray) -> np.ndarray:
         g = np.zeros(self.shape)
-        g[: self.nx, : self.ny] = (self.BT @ (q * self.mesh.areas)).reshape(self.nx, self.ny) / (self.h * self.h)
+        g[: self.nx, : self.ny] = ((self.BT @ (q * self.mesh.areas)).reshape(self.nx, self.ny)
+                                   / (self.h * self.h))
         return g
 
     def _conv(self, G_hat, f_hat) -> np.ndarray:

@@ -58,7 +58,8 @@ def _split(overrides: dict[str, Any], targets: dict[str, set[str]]) -> dict[str,
     known = set().union(*targets.values())
     unknown = sorted(set(overrides) - known)
     if unknown:
-        raise ParameterError(f"unknown parameter '{unknown[0]}' (known: {', '.join(sorted(known))})")
+        raise ParameterError(f"unknown parameter '{unknown[0]}' "
+                             f"(known: {', '.join(sorted(known))})")
     return {k: {n: v for n, v in overrides.items() if n in names} for k, names in targets.items()}
 
 
@@ -159,7 +160,8 @@ class MacroRun:
         Q = self.state.Q
         rho = Q[:, 0]
         if self.model.n_vars == 1:  # RDUE: u = U_e(rho) e
-            vel = (self.model.U_f * np.exp(-self.model.beta * np.maximum(rho, 0)))[:, None] * self.solver.e_cell
+            speed = self.model.U_f * np.exp(-self.model.beta * np.maximum(rho, 0))
+            vel = speed[:, None] * self.solver.e_cell
         else:
             vel = self.model.velocity(Q)
         return {"rho": rho, "velocity": vel}

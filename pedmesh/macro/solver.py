@@ -120,7 +120,8 @@ class FVSolver:
         self.e2t = e2t
         self.kind = mesh.edge_kind
         self.interior = np.flatnonzero(e2t[:, 1] >= 0)
-        self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL) | (self.kind == BoundaryKind.OBSTACLE))
+        self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL)
+                                    | (self.kind == BoundaryKind.OBSTACLE))
         self.exits = np.flatnonzero(self.kind == BoundaryKind.EXIT)
         self.exit_owner = mesh.edge_owner[self.exits]
         self.n_exits = len(mesh.exit_names)
@@ -143,7 +144,8 @@ class FVSolver:
         self.phi = np.zeros(mesh.n_points)
         self._eikonal = None
         if direction is not None:
-            self.e_edge = np.asarray(direction(self.recon.edge_pt[..., 0], self.recon.edge_pt[..., 1]), float)
+            self.e_edge = np.asarray(direction(self.recon.edge_pt[..., 0],
+                                               self.recon.edge_pt[..., 1]), float)
             self.e_int = np.asarray(direction(self.int_pts[..., 0], self.int_pts[..., 1]), float)
             self.e_cell = np.asarray(direction(mesh.centroids[:, 0], mesh.centroids[:, 1]), float)
         elif model.needs_route:

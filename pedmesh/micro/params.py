@@ -80,13 +80,15 @@ class SFMNumerics:
         for name in ("dt", "force_cutoff", "density_cutoff", "max_speed", "output_interval",
                      "sample_interval"):
             if not getattr(self, name) > 0:
-                raise ParameterError(f"parameter '{name}' must be positive, got {getattr(self, name)!r}")
+                raise ParameterError(f"parameter '{name}' must be positive, "
+                                     f"got {getattr(self, name)!r}")
         if self.density_stages not in (1, 3):
             raise ParameterError(
                 f"parameter 'density_stages' must be 1 or 3, got {self.density_stages!r}")
         for name in ("route_interval", "overlap_tolerance"):
             if getattr(self, name) < 0:
-                raise ParameterError(f"parameter '{name}' must be >= 0, got {getattr(self, name)!r}")
+                raise ParameterError(f"parameter '{name}' must be >= 0, "
+                                     f"got {getattr(self, name)!r}")
 
 
 def _check_positive(obj: Any) -> None:

@@ -96,7 +96,8 @@ class Simulation:
         p, nm = self.params, self.numerics
         if positions is None:
             if mesh.room is None or not mesh.room.start_areas:
-                raise SimulationError("no start positions: give positions or a room with start areas")
+                raise SimulationError("no start positions: give positions or a room with "
+                                      "start areas")
             positions = mesh.room.initial_positions()
         x = np.array(positions, dtype=np.float64).reshape(-1, 2)
         N = len(x)
@@ -112,7 +113,8 @@ class Simulation:
                 "area (outside the room or inside an obstacle)"
             )
         self._check_overlaps(x)
-        v = np.zeros_like(x) if velocities is None else np.array(velocities, np.float64).reshape(N, 2)
+        v = (np.zeros_like(x) if velocities is None
+             else np.array(velocities, np.float64).reshape(N, 2))
         if not np.all(np.isfinite(v)):
             raise SimulationError("initial velocities contain non-finite values")
         self.n_initial = N
@@ -309,7 +311,8 @@ class Simulation:
         return n_gone
 
     def run(self, t_end: float, callback: Callable[["Simulation"], None] | None = None) -> None:
-        """Step until everyone has left or ``t >= t_end`` [s]; ``callback(self)`` after each step."""
+        """Step until everyone has left or ``t >= t_end`` [s]; ``callback(self)`` after each
+        step."""
         while self.n > 0 and self.t < t_end - 1e-9:
             self.step()
             if callback is not None:

@@ -238,6 +238,7 @@ _SFM = {"A", "B", "k", "kappa", "m", "r"}
 register_model("mac1", _macro_factory("mac1", _BASE | _SFM | {"walls", "friction", "cutoff",
                                                            "split_friction"}))
 for _name in ("mac2-local", "mac2-local-friction", "mac2-nonlocal", "mac2-nonlocal-friction"):
-    register_model(_name, _macro_factory(_name, _BASE | _SFM | {"lr_strength", "lr_length", "gamma1"}))
+    register_model(_name,
+                   _macro_factory(_name, _BASE | _SFM | {"lr_strength", "lr_length", "gamma1"}))
 register_model("eos", _macro_factory("eos", _BASE | _SFM | {"calibration"}),
                aliases=("calibrated",))

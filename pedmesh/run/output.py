@@ -298,7 +298,8 @@ class RunWriter:
             self._density = PVDWriter(self.dir / "density.pvd")
         self._density.write_mesh(t, mesh, point_data, cell_data)
 
-    def pedestrian_frame(self, t: float, points: np.ndarray, data: Mapping[str, np.ndarray]) -> None:
+    def pedestrian_frame(self, t: float, points: np.ndarray,
+                         data: Mapping[str, np.ndarray]) -> None:
         """Add a frame to pedestrians.pvd."""
         if self._peds is None:
             self._peds = PVDWriter(self.dir / "pedestrians.pvd")

@@ -41,7 +41,8 @@ def test_kernel_velocity_is_a_weighted_mean():
     np.testing.assert_allclose(u[0], [0.5, 1.0])
     w = math.exp(-1 / 0.49)
     np.testing.assert_allclose(u[1], [1 / (1 + w), 2 * w / (1 + w)])
-    assert np.all(kernel_velocity(positions=pos, velocities=vel, points=np.array([[9.0, 9.0]])) == 0)
+    assert np.all(kernel_velocity(positions=pos, velocities=vel,
+                                  points=np.array([[9.0, 9.0]])) == 0)
 
 
 @pytest.fixture(scope="module")
@@ -119,7 +120,8 @@ def test_compare_pipeline_small_room(tmp_path, capsys):
         assert (out / name).exists(), name
     rows = (out / "comparison.csv").read_text().splitlines()
     assert rows[0].startswith("label,model,t_evac_50") and len(rows) == 6
-    s = {lab: json.loads((out / lab / "summary.json").read_text()) for lab in ("sfm", "rdue", "pw_c00.8", "mac1", "eos")}
+    s = {lab: json.loads((out / lab / "summary.json").read_text())
+         for lab in ("sfm", "rdue", "pw_c00.8", "mac1", "eos")}
     assert all(v["status"] == "finished" for v in s.values())
     assert s["pw_c00.8"]["parameters"]["c0"] == 0.8
     assert s["eos"]["exit_condition"] == "godunov"

@@ -84,7 +84,8 @@ def test_vacuum_flux_is_the_dam_break_value():
         vacuum_godunov(q, one, 0 * one, law.kind, law.params, 1e-3, 10.0, h_rho, h_val, F)
         np.testing.assert_allclose(F[:, 0], 8 / 27 * rho * c, rtol=2e-3 if law.kind == 2 else 1e-12)
         # the momentum flux is m u* + p(rho*) with rho* = 4/9 rho
-        np.testing.assert_allclose(F[:, 1], 8 / 27 * rho * c * (2 / 3) * c + 0.5 * g * (4 / 9 * rho) ** 2,
+        np.testing.assert_allclose(F[:, 1],
+                                   8 / 27 * rho * c * (2 / 3) * c + 0.5 * g * (4 / 9 * rho) ** 2,
                                    rtol=4e-3 if law.kind == 2 else 1e-12)
     # isothermal: rho e^-1 c0 at rest; supersonic outflow: the state's own flux
     law = PressureLaw.isothermal(1.0)
@@ -186,7 +187,8 @@ def test_calibration_stops_between_replicas_on_request():
 @pytest.fixture(scope="module")
 def corridor():
     room = Room([(0, 0), (12, 0), (12, 4), (0, 4)], exits=[Exit("door", [(12, 1), (12, 3)])],
-                start_areas=[StartArea("crowd", [(1, 0.5), (7, 0.5), (7, 3.5), (1, 3.5)], density=2.0)])
+                start_areas=[StartArea("crowd", [(1, 0.5), (7, 0.5), (7, 3.5), (1, 3.5)],
+                                       density=2.0)])
     return room, room.mesh(max_area=0.3)
 
 

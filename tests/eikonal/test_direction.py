@@ -49,7 +49,8 @@ def test_never_into_a_wall(field):
     w = mesh.wall_edges()
     rng = np.random.default_rng(2)
     for s in (np.zeros(len(w)), np.ones(len(w)), rng.uniform(0, 1, len(w))):
-        pts = (1 - s[:, None]) * mesh.points[mesh.edges[w, 0]] + s[:, None] * mesh.points[mesh.edges[w, 1]]
+        pts = ((1 - s[:, None]) * mesh.points[mesh.edges[w, 0]]
+               + s[:, None] * mesh.points[mesh.edges[w, 1]])
         e = f.at(pts, mesh.edge_triangles[w, 0])
         assert np.all(np.einsum("ij,ij->i", e, mesh.edge_normals[w]) <= 1e-12)
         np.testing.assert_allclose(_unit(e), 1.0, atol=1e-12)
@@ -65,9 +66,11 @@ def test_plane_wave_direction():
     room = Room([(0, 0), (20, 0), (20, 10), (0, 10)], exits=[Exit("w", [(0, 10), (0, 0)])])
     mesh = room.mesh(max_area=0.5)
     f = DirectionField(mesh, solve_eikonal(mesh))
-    np.testing.assert_allclose(f.triangle_directions, np.broadcast_to([-1.0, 0.0], (mesh.n_triangles, 2)), atol=1e-9)
+    np.testing.assert_allclose(f.triangle_directions,
+                               np.broadcast_to([-1.0, 0.0], (mesh.n_triangles, 2)), atol=1e-9)
     inner = ~mesh.boundary_vertices
-    np.testing.assert_allclose(f.vertex_directions[inner], np.broadcast_to([-1.0, 0.0], (inner.sum(), 2)), atol=1e-9)
+    np.testing.assert_allclose(f.vertex_directions[inner],
+                               np.broadcast_to([-1.0, 0.0], (inner.sum(), 2)), atol=1e-9)
 
 
 def test_outside_and_unreachable_give_zero(load_shipped):

@@ -54,7 +54,8 @@ def test_observed_order(example3_sequence, corner_radius):
     room, meshes, exact = example3_sequence
     hs, l1 = [], []
     for mesh, ex in zip(meshes, exact):
-        s = EikonalSolver(mesh) if corner_radius is None else EikonalSolver(mesh, corner_radius=corner_radius)
+        s = (EikonalSolver(mesh) if corner_radius is None
+             else EikonalSolver(mesh, corner_radius=corner_radius))
         phi = s.solve(1.0)
         hs.append(mesh.h)
         l1.append(np.abs(phi - ex).mean())

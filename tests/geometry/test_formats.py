@@ -29,7 +29,8 @@ def test_native_round_trip_keeps_every_float_bit(tmp_path):
     x = 0.1 + 0.2  # 0.30000000000000004
     room = Room([(0, 0), (10 * x, 0), (10 * x, math.pi), (0, math.pi)],
                 exits=[{"name": "e", "polyline": [(10 * x, 1 / 3), (10 * x, 2 / 3)]}],
-                start_areas=[{"name": "s", "polygon": [(0.1, 0.1), (1, 0.1), (1, 1)], "density": 1 / 7}])
+                start_areas=[{"name": "s", "polygon": [(0.1, 0.1), (1, 0.1), (1, 1)],
+                              "density": 1 / 7}])
     again = load_room(save_room(room, tmp_path / "r.json"))
     assert again == room
     assert again.start_areas[0].density == 1 / 7
@@ -76,7 +77,8 @@ def test_dxf_circle_pillar_and_start_text(tmp_path):
 
     doc = ezdxf.new()
     msp = doc.modelspace()
-    msp.add_lwpolyline([(0, 0), (20, 0), (20, 10), (0, 10)], close=True, dxfattribs={"layer": "ROOM"})
+    msp.add_lwpolyline([(0, 0), (20, 0), (20, 10), (0, 10)], close=True,
+                       dxfattribs={"layer": "ROOM"})
     msp.add_circle((10, 5), 1.0, dxfattribs={"layer": "obstacle-pillar"})
     msp.add_line((20, 4), (20, 6), dxfattribs={"layer": "Exit_east"})
     msp.add_lwpolyline([(1, 1), (5, 1), (5, 9), (1, 9)], close=True, dxfattribs={"layer": "start"})

@@ -50,10 +50,13 @@ def valid_rooms(draw):
         a, b = np.array(outline[e]), np.array(outline[(e + 1) % n])
         s0 = draw(st.floats(0.05, 0.5))
         s1 = draw(st.floats(s0 + 0.05, 0.95))
-        exits.append({"name": f"x{j}", "polyline": [tuple(a + s0 * (b - a)), tuple(a + s1 * (b - a))]})
+        exits.append({"name": f"x{j}",
+                      "polyline": [tuple(a + s0 * (b - a)), tuple(a + s1 * (b - a))]})
     start = []
     if draw(st.booleans()) and centres == []:
-        start = [{"name": "s", "polygon": [(cx - 1, cy - 1), (cx + 1, cy - 1), (cx + 1, cy + 1), (cx - 1, cy + 1)],
+        start = [{"name": "s",
+                  "polygon": [(cx - 1, cy - 1), (cx + 1, cy - 1), (cx + 1, cy + 1),
+                              (cx - 1, cy + 1)],
                   "density": draw(st.floats(0.5, 4.0))}]
     return {"outline": outline, "obstacles": obstacles, "exits": exits, "start_areas": start}
 
@@ -66,7 +69,8 @@ def test_random_valid_rooms_mesh(d):
     exact = shapely.Polygon(room.outline).area - sum(o.shape.area for o in room.obstacles)
     assert abs(mesh.total_area - exact) <= 1e-9 * exact
     for k in range(len(room.exits)):
-        assert abs(mesh.exit_lengths[k] - room.exit_length(k)) <= 1e-12 * room.exit_length(k) + 1e-15
+        err = abs(mesh.exit_lengths[k] - room.exit_length(k))
+        assert err <= 1e-12 * room.exit_length(k) + 1e-15
     # (no angle bound here: random outlines have input corners sharper than 25 degrees)
     assert len(mesh.boundary_edges) == len(mesh.segments)
     # and the native format round-trips it exactly
@@ -84,13 +88,17 @@ def _mutate(d: dict, which: int, data) -> dict:
         i = data.draw(st.integers(0, len(d["outline"]) - 1))
         d["outline"][i][data.draw(st.integers(0, 1))] = data.draw(st.sampled_from(BAD_VALUES))
     elif which == 1:  # obstacle far outside
-        d["obstacles"] = [{"name": "far", "polygon": [(cx + 500, cy), (cx + 501, cy), (cx + 501, cy + 1)]}]
+        d["obstacles"] = [{"name": "far",
+                           "polygon": [(cx + 500, cy), (cx + 501, cy), (cx + 501, cy + 1)]}]
     elif which == 2:  # obstacle larger than the room: crosses the outline
         d["obstacles"] = [{"name": "big", "polygon": [(cx - 30, cy - 0.5), (cx + 30, cy - 0.5),
                                                        (cx + 30, cy + 0.5), (cx - 30, cy + 0.5)]}]
     elif which == 3:  # two overlapping obstacles
-        d["obstacles"] = [{"name": "a", "polygon": [(cx, cy), (cx + 1, cy), (cx + 1, cy + 1), (cx, cy + 1)]},
-                          {"name": "b", "polygon": [(cx + .5, cy + .5), (cx + 1.5, cy + .5), (cx + 1.5, cy + 1.5)]}]
+        d["obstacles"] = [{"name": "a",
+                           "polygon": [(cx, cy), (cx + 1, cy), (cx + 1, cy + 1), (cx, cy + 1)]},
+                          {"name": "b",
+                           "polygon": [(cx + .5, cy + .5), (cx + 1.5, cy + .5),
+                                       (cx + 1.5, cy + 1.5)]}]
     elif which == 4:  # exit moved into the room
         p, q = np.array(d["exits"][0]["polyline"])
         d["exits"][0]["polyline"] = [list(0.5 * (p + [cx, cy])), list(0.5 * (q + [cx, cy]))]
@@ -103,16 +111,19 @@ def _mutate(d: dict, which: int, data) -> dict:
     elif which == 7:  # unknown key
         d[data.draw(st.sampled_from(["exit", "walls", "obstacle", "Outline"]))] = []
     elif which == 8:  # start area with a bad parameter
-        d["start_areas"] = [{"name": "s", "polygon": [(cx - .5, cy - .5), (cx + .5, cy - .5), (cx, cy + .5)],
+        d["start_areas"] = [{"name": "s",
+                             "polygon": [(cx - .5, cy - .5), (cx + .5, cy - .5), (cx, cy + .5)],
                              data.draw(st.sampled_from(["count", "spacing", "density"])):
                              data.draw(st.sampled_from([0, -1, float("nan"), "2", None]))}]
     elif which == 9:  # start area far outside the room
-        d["start_areas"] = [{"name": "s", "polygon": [(cx + 900, cy), (cx + 901, cy), (cx + 901, cy + 1)],
+        d["start_areas"] = [{"name": "s",
+                             "polygon": [(cx + 900, cy), (cx + 901, cy), (cx + 901, cy + 1)],
                              "count": 1}]
     elif which == 10:  # duplicated exit
         d["exits"].append(dict(d["exits"][0]))
     elif which == 11:  # polygon given as a string or number
-        d[data.draw(st.sampled_from(["outline", "obstacles", "exits"]))] = data.draw(st.sampled_from(["abc", 3, None]))
+        bad = data.draw(st.sampled_from(["abc", 3, None]))  # drawn first, as before
+        d[data.draw(st.sampled_from(["outline", "obstacles", "exits"]))] = bad
     return d
 
 

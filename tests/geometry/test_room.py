@@ -81,5 +81,6 @@ def test_closing_point_and_duplicates_are_dropped():
 
 
 def test_elements_from_dicts_and_numpy():
-    room = Room(np.array(BOX, float), exits=[{"name": "e", "polyline": np.array([[10, 1], [10, 2]])}])
+    room = Room(np.array(BOX, float),
+                exits=[{"name": "e", "polyline": np.array([[10, 1], [10, 2]])}])
     assert room.exits[0] == Exit("e", [(10, 1), (10, 2)])

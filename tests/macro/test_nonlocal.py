@@ -28,7 +28,8 @@ def ops_sequence():
 def test_gammas_of_table_1():
     assert gamma1(PHI) == pytest.approx(8.80, rel=1e-3)
     assert gamma2(PSI) == pytest.approx(56.5, rel=1e-3)
-    # the closed forms: gamma1 = pi [A e^(r/B) 2 B^3 + k r^4 / 12] / m, gamma2 = pi kappa r^3 / (6 m)
+    # the closed forms: gamma1 = pi [A e^(r/B) 2 B^3 + k r^4 / 12] / m,
+    # gamma2 = pi kappa r^3 / (6 m)
     exact1 = np.pi * (2000 * np.exp(0.3 / 0.08) * 2 * 0.08**3 + 1.2e5 * 0.3**4 / 12) / 60
     assert gamma1(PHI) == pytest.approx(exact1, rel=1e-9)
     assert gamma2(PSI) == pytest.approx(np.pi * 2.4e5 * 0.3**3 / 6 / 60, rel=1e-9)
@@ -36,7 +37,8 @@ def test_gammas_of_table_1():
 
 
 def _momentum(mesh, F):
-    return np.abs((mesh.areas[:, None] * F).sum(axis=0)).max() / (mesh.areas[:, None] * np.abs(F)).sum()
+    return np.abs((mesh.areas[:, None] * F).sum(axis=0)).max() / (mesh.areas[:, None]
+                                                                  * np.abs(F)).sum()
 
 
 def test_fused_operator_passes_equal_the_sparse_products(ops_sequence):
@@ -98,7 +100,8 @@ def test_wall_images_hold_a_uniform_crowd_at_a_straight_wall(ops_sequence):
     F = ops.repulsion(np.full(mesh.n_triangles, 2.0), walls=True)
     F0 = ops.repulsion(np.full(mesh.n_triangles, 2.0), walls=False)
     near_exit = np.hypot(c[:, 0] - 12, np.clip(c[:, 1], 3, 5) - c[:, 1]) < 1.5
-    corner = np.min([np.hypot(c[:, 0] - x, c[:, 1] - y) for x in (0, 12) for y in (0, 8)], axis=0) < 1.5
+    corner = np.min([np.hypot(c[:, 0] - x, c[:, 1] - y) for x in (0, 12) for y in (0, 8)],
+                    axis=0) < 1.5
     sel = ~near_exit & ~corner
     assert np.abs(F[sel]).max() < 1e-3 * np.abs(F0[sel]).max()
     # at the exit there is no image: the crowd is pushed out through it

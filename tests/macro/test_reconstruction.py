@@ -99,7 +99,8 @@ def test_three_variable_kernel_equals_the_general_one(order):
     R = build_reconstruction(mesh)
     c = mesh.centroids
     rng = np.random.default_rng(7)
-    q = np.stack([1 + np.sin(2 * c[:, 0]), 0.3 * rng.random(len(c)), np.where(c[:, 1] > 1.5, 1.0, -1.0)], 1)
+    q = np.stack([1 + np.sin(2 * c[:, 0]), 0.3 * rng.random(len(c)),
+                  np.where(c[:, 1] > 1.5, 1.0, -1.0)], 1)
     q[c[:, 0] > 3] = 0.0  # a flat empty part
     m = mesh.n_triangles
     ve = np.zeros((m, 6, 3))

@@ -120,15 +120,19 @@ def test_normals_point_out_of_the_first_triangle(room_and_mesh):
     probe = mesh.edge_midpoints[b] + 1e-6 * n[b]
     assert not shapely.contains_xy(room.walkable, probe[:, 0], probe[:, 1]).any()
     # divergence theorem per triangle: sum of l_e n_e over its edges vanishes
-    sign = np.where(mesh.edge_triangles[mesh.triangle_edges, 0] == np.arange(mesh.n_triangles)[:, None], 1.0, -1.0)
-    s = np.einsum("ij,ijk->ik", sign * mesh.edge_lengths[mesh.triangle_edges], n[mesh.triangle_edges])
+    own = mesh.edge_triangles[mesh.triangle_edges, 0] == np.arange(mesh.n_triangles)[:, None]
+    sign = np.where(own, 1.0, -1.0)
+    s = np.einsum("ij,ijk->ik", sign * mesh.edge_lengths[mesh.triangle_edges],
+                  n[mesh.triangle_edges])
     assert np.abs(s).max() < 1e-12 * mesh.edge_lengths.max()
 
 
 def test_triangles_counter_clockwise(room_and_mesh):
     _, mesh = room_and_mesh
     p = mesh.points[mesh.triangles]
-    a2 = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1])
+    a2 = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 2, 0]
+                                                                  - p[:, 0, 0]) * (p[:, 1, 1]
+                                                                                   - p[:, 0, 1])
     assert np.all(a2 > 0)
 
 

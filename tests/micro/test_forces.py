@@ -151,7 +151,8 @@ def direct_walls(x, v, room, rc_w, p=P):
             nw = (xi - c) / d
             tw = np.array([-nw[1], nw[0]])
             g = max(p.r - d, 0.0)
-            f = (p.A * math.exp((p.r - d) / p.B) + p.k * g) * nw - p.kappa * g * np.dot(v[i], tw) * tw
+            f = ((p.A * math.exp((p.r - d) / p.B) + p.k * g) * nw
+                 - p.kappa * g * np.dot(v[i], tw) * tw)
             F[i] += f / p.m
     return F
 
@@ -168,7 +169,8 @@ def test_wall_forces_match_direct_formula(seed):
     walls = WallSet.from_mesh(mesh, rc_w)
     rng = np.random.default_rng(seed)
     # points near walls, corners (convex and reflex), door jambs, and anywhere
-    corners = np.array([[0, 0], [12, 0], [6, 4], [2, 5], [3.5, 6.5], [12, 1], [12, 3], [2, 10], [6, 10]], float)
+    corners = np.array([[0, 0], [12, 0], [6, 4], [2, 5], [3.5, 6.5], [12, 1], [12, 3], [2, 10],
+                        [6, 10]], float)
     near = corners[rng.integers(0, len(corners), 600)] + rng.normal(0, 0.4, (600, 2))
     anywhere = rng.uniform([0, 0], [12, 10], (400, 2))
     x = np.concatenate([near, anywhere])
@@ -185,7 +187,8 @@ def test_wall_forces_match_direct_formula(seed):
     xs = np.column_stack([np.linspace(0.5, 11.5, 200), np.full(200, 0.1)])
     xs = xs[mesh.locate(xs) >= 0]
     Fs = np.zeros_like(xs)
-    K.wall_accel(xs, np.zeros_like(xs), len(xs), walls.piece, walls.next_seg, walls.x0, walls.y0, walls.inv_cell, walls.nx, walls.ny,
+    K.wall_accel(xs, np.zeros_like(xs), len(xs), walls.piece, walls.next_seg, walls.x0, walls.y0,
+                 walls.inv_cell, walls.nx, walls.ny,
                  walls.cell_ptr, walls.cell_seg, rc_w, P.r, P.A, P.B, P.k, P.kappa, P.m, Fs)
     one_wall = (P.A * math.exp((P.r - 0.1) / P.B) + P.k * (P.r - 0.1)) / P.m
     far = (xs[:, 0] > 1.2) & (xs[:, 0] < 10.8) & ~((xs[:, 0] > 0.8) & (xs[:, 0] < 4.7))

@@ -124,7 +124,8 @@ def test_step_densities_are_the_kernel_density_at_the_step_start(load_shipped, s
 
 def test_start_outside_or_in_obstacle_is_rejected(load_shipped):
     mesh = load_shipped("example3.json").mesh(max_area=4)
-    with pytest.raises(SimulationError, match=r"pedestrian 1 starts at \(75.000, 25.000\) m, outside"):
+    with pytest.raises(SimulationError,
+                       match=r"pedestrian 1 starts at \(75.000, 25.000\) m, outside"):
         Simulation(mesh, np.array([[10.0, 10.0], [75.0, 25.0]]))
     with pytest.raises(SimulationError, match="pedestrian 0 starts at .* outside"):
         Simulation(mesh, np.array([[-1.0, 10.0]]))

@@ -56,7 +56,8 @@ def _check_sfm_outputs(out: Path, room) -> None:
     b = sql.data.sort_values(["frame", "id"])[["id", "frame", "x", "y"]].to_numpy()
     assert a.shape == b.shape and np.array_equal(a[:, :2], b[:, :2])
     assert np.abs(a[:, 2:] - b[:, 2:]).max() < 1e-4  # the text file has 4 decimals
-    area = pedpy.load_walkable_area_from_jupedsim_sqlite(trajectory_file=out / "trajectories.sqlite")
+    area = pedpy.load_walkable_area_from_jupedsim_sqlite(trajectory_file=out
+                                                         / "trajectories.sqlite")
     assert area.polygon.area == pytest.approx(room.area, rel=1e-9)
     # every leaver's last row is on the exit they took
     import shapely

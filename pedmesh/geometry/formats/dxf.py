@@ -160,7 +160,8 @@ def write_dxf(room: Room, path: str | Path) -> None:
                 for k in ("count", "spacing", "density"):
                     if k in el:
                         x, y = el[coord_key][0]
-                        msp.add_text(f"{k}={el[k]!r}", dxfattribs={"layer": layer, "insert": (x, y)})
+                        msp.add_text(f"{k}={el[k]!r}",
+                                     dxfattribs={"layer": layer, "insert": (x, y)})
     doc.saveas(Path(path))
 
 

@@ -60,7 +60,8 @@ _ELEMENTS: dict[str, tuple[type, str, str, tuple[str, ...]]] = {
 def room_from_dict(data: Any, source: str = "room") -> Room:
     """Build a :class:`Room` from a native-format dict, with strict key checks."""
     if not isinstance(data, dict):
-        raise RoomFileError(f"{source}: the top level must be a JSON object, got {type(data).__name__}")
+        raise RoomFileError(f"{source}: the top level must be a JSON object, "
+                            f"got {type(data).__name__}")
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
         raise RoomFileError(
@@ -117,7 +118,8 @@ def room_to_dict(room: Room) -> dict[str, Any]:
     for key, (cls, label, coord_key, optional) in _ELEMENTS.items():
         items = []
         for el in getattr(room, key):
-            d: dict[str, Any] = {"name": el.name, coord_key: [list(p) for p in getattr(el, coord_key)]}
+            d: dict[str, Any] = {"name": el.name,
+                                 coord_key: [list(p) for p in getattr(el, coord_key)]}
             for k in optional:
                 if getattr(el, k) is not None:
                     d[k] = getattr(el, k)

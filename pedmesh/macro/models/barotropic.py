@@ -141,7 +141,8 @@ def _p_c(kind, prm, rho):
     d1 = prm[1 + 2 * n + hi] * w
     t2 = t * t
     t3 = t2 * t
-    p = (2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * d0 + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * d1
+    p = ((2 * t3 - 3 * t2 + 1) * y0 + (t3 - 2 * t2 + t) * d0
+         + (-2 * t3 + 3 * t2) * y1 + (t3 - t2) * d1)
     dp = ((6 * t2 - 6 * t) * y0 + (3 * t2 - 4 * t + 1) * d0 + (-6 * t2 + 6 * t) * y1
           + (3 * t2 - 2 * t) * d1) / w
     return p, math.sqrt(max(dp, 0.0))
@@ -190,8 +191,10 @@ def _rusanov_point(qL, qR, nx, ny, kind, prm, rho_cut, umax):
     unr = urx * nx + ury * ny
     a = max(abs(unl) + cl, abs(unr) + cr)
     f0 = 0.5 * (rl * unl + rr * unr) - 0.5 * a * (rr - rl)
-    f1 = 0.5 * (rl * ulx * unl + pl * nx + rr * urx * unr + pr * nx) - 0.5 * a * (rr * urx - rl * ulx)
-    f2 = 0.5 * (rl * uly * unl + pl * ny + rr * ury * unr + pr * ny) - 0.5 * a * (rr * ury - rl * uly)
+    f1 = (0.5 * (rl * ulx * unl + pl * nx + rr * urx * unr + pr * nx)
+          - 0.5 * a * (rr * urx - rl * ulx))
+    f2 = (0.5 * (rl * uly * unl + pl * ny + rr * ury * unr + pr * ny)
+          - 0.5 * a * (rr * ury - rl * uly))
     return f0, f1, f2, a
 
 
@@ -404,7 +407,8 @@ class BarotropicModel(MacroModel):
         #: velocity within the bounds of the neighbourhood (the first-order scheme does)
         self.pressureless = (law.kind == ISOTHERMAL and float(law.params[0]) == 0.0) or \
             law.kind == SPEED_ONLY
-        self.U_f, self.beta, self.tau, self.rho_cut = float(U_f), float(beta), float(tau), float(rho_cut)
+        self.U_f, self.beta = float(U_f), float(beta)
+        self.tau, self.rho_cut = float(tau), float(rho_cut)
         #: velocity cap [m/s] at near-vacuum points (rho < 10 rho_cut; default 2.5 U_f)
         self.u_max = float(u_max) if u_max is not None else 2.5 * self.U_f
         # exits: Rusanov against empty space (vacuum), zero gradient (transmissive), and for

@@ -141,5 +141,6 @@ def register_macro_model(name: str, factory: Callable[..., MacroModel]) -> None:
 
 def macro_model(name: str, **params) -> MacroModel:
     if name not in MACRO_MODELS:
-        raise ParameterError(f"unknown continuum model '{name}' (models: {', '.join(sorted(MACRO_MODELS))})")
+        raise ParameterError(f"unknown continuum model '{name}' "
+                             f"(models: {', '.join(sorted(MACRO_MODELS))})")
     return MACRO_MODELS[name](**params)

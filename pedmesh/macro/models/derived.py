@@ -88,7 +88,8 @@ class Mac1(BarotropicModel):
         self.split_friction = bool(split_friction)
         self.has_split_source = self.use_friction and self.split_friction
         if not (np.isfinite(cutoff) and cutoff > 2 * self.phi.r_ij / 2):
-            raise ParameterError(f"parameter 'cutoff' must exceed the body diameter, got {cutoff!r}")
+            raise ParameterError(f"parameter 'cutoff' must exceed the body diameter, "
+                                 f"got {cutoff!r}")
         self.cutoff = float(cutoff)
         self.ops = None
 
@@ -211,7 +212,8 @@ class Mac2(BarotropicModel):
 
 
 register_macro_model("mac1", lambda **kw: Mac1(**kw))
-register_macro_model("mac2-local", lambda **kw: Mac2("mac2-local", local=True, friction=False, **kw))
+register_macro_model("mac2-local",
+                     lambda **kw: Mac2("mac2-local", local=True, friction=False, **kw))
 register_macro_model("mac2-local-friction",
                      lambda **kw: Mac2("mac2-local-friction", local=True, friction=True, **kw))
 register_macro_model("mac2-nonlocal",
