@@ -21,6 +21,7 @@ SUBCOMMANDS = {
     "compare": "pedmesh.cli.compare",
     "calibrate": "pedmesh.cli.calibrate",
     "ensemble": "pedmesh.cli.ensemble",
+    "export": "pedmesh.cli.export",
 }
 
 

@@ -1,0 +1,145 @@
+"""A 3-D model of a room and its crowd (trimesh), for Blender, web viewers and slides.
+
+:func:`export_room_3d` builds a scene in metres with z up:
+
+* ``floor``: the walkable area (the room's triangle mesh), light grey;
+* ``walls``: the outline as a solid band ``wall_thickness`` thick outside the walkable area,
+  ``wall_height`` high, with a gap at every exit on the outline, grey;
+* ``obstacles``: each obstacle extruded to ``wall_height``, dark grey;
+* ``exits``: a green strip on the floor along every exit;
+* ``crowd`` (if positions are given): one upright cylinder per pedestrian (radius
+  ``body_radius``, height ``body_height``), blue.
+
+The suffix picks the format: ``.glb`` (binary glTF 2.0, one file, colours kept; Blender's
+File > Import > glTF, three.js, https://gltf-viewer.donmccurdy.com), ``.gltf`` (glTF with
+embedded buffers), ``.obj``, ``.ply``, ``.stl`` (one merged mesh; STL has no colours).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import PedmeshError
+
+__all__ = ["room_scene", "export_room_3d", "read_positions", "FORMATS"]
+
+FORMATS = (".glb", ".gltf", ".obj", ".ply", ".stl")
+_COLOURS = {"floor": (225, 225, 220, 255), "walls": (150, 150, 150, 255),
+            "obstacles": (95, 95, 100, 255), "exits": (40, 170, 60, 255),
+            "crowd": (40, 90, 200, 255)}
+
+
+def _coloured(mesh, name: str):
+    mesh.visual.face_colors = np.tile(np.array(_COLOURS[name], np.uint8), (len(mesh.faces), 1))
+    mesh.metadata["name"] = name
+    return mesh
+
+
+def _extrude(shape, height: float):
+    import shapely
+    import trimesh
+
+    parts = [shape] if shape.geom_type == "Polygon" else list(getattr(shape, "geoms", []))
+    solids = [trimesh.creation.extrude_polygon(shapely.orient_polygons(p), height,
+                                               engine="triangle")
+              for p in parts if p.geom_type == "Polygon" and p.area > 1e-12]
+    return trimesh.util.concatenate(solids) if solids else None
+
+
+def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
+               wall_height: float = 2.5, wall_thickness: float = 0.2,
+               body_radius: float = 0.2, body_height: float = 1.75):
+    """The room (and crowd at ``positions`` (n, 2) [m]) as a ``trimesh.Scene`` (see the
+    module docstring); ``mesh``: the room's TriMesh for the floor (default: a new one)."""
+    import shapely
+    import trimesh
+
+    for label, v in (("wall_height", wall_height), ("wall_thickness", wall_thickness),
+                     ("body_radius", body_radius), ("body_height", body_height)):
+        if not (np.isfinite(v) and v > 0):
+            raise PedmeshError(f"{label} must be a positive number of metres, got {v!r}")
+    tri = mesh if mesh is not None else room.mesh(max_area=max(room.area / 2000.0, 0.5))
+    scene = trimesh.Scene()
+    floor = trimesh.Trimesh(np.column_stack([tri.points, np.zeros(tri.n_points)]),
+                            tri.triangles, process=False)
+    scene.add_geometry(_coloured(floor, "floor"), geom_name="floor")
+    outline = shapely.Polygon(room.outline)
+    band = outline.buffer(wall_thickness, join_style="mitre").difference(outline)
+    exit_lines = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
+    doors = [ln.buffer(1.5 * wall_thickness, cap_style="flat") for ln in exit_lines]
+    if doors:
+        band = band.difference(shapely.union_all(doors))
+    walls = _extrude(band, wall_height)
+    if walls is not None:
+        scene.add_geometry(_coloured(walls, "walls"), geom_name="walls")
+    obstacles = [_extrude(o.shape, wall_height) for o in room.obstacles]
+    obstacles = [o for o in obstacles if o is not None]
+    if obstacles:
+        scene.add_geometry(_coloured(trimesh.util.concatenate(obstacles), "obstacles"),
+                           geom_name="obstacles")
+    if exit_lines:
+        strip = shapely.union_all([ln.buffer(0.15, cap_style="flat") for ln in exit_lines])
+        strip = strip.intersection(room.walkable.buffer(1e-6))
+        solid = _extrude(strip, 0.02)
+        if solid is not None:
+            scene.add_geometry(_coloured(solid, "exits"), geom_name="exits")
+    if positions is not None and len(positions):
+        pos = np.asarray(positions, float).reshape(-1, 2)
+        body = trimesh.creation.cylinder(radius=body_radius, height=body_height, sections=12)
+        body.apply_translation((0.0, 0.0, body_height / 2))
+        n_v = len(body.vertices)
+        verts = (body.vertices[None, :, :] + np.column_stack(
+            [pos, np.zeros(len(pos))])[:, None, :]).reshape(-1, 3)
+        faces = (body.faces[None, :, :] + (np.arange(len(pos)) * n_v)[:, None, None])
+        crowd = trimesh.Trimesh(verts, faces.reshape(-1, 3), process=False)
+        crowd.metadata["bodies"] = int(len(pos))
+        scene.add_geometry(_coloured(crowd, "crowd"), geom_name="crowd")
+    return scene
+
+
+def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
+    """Write :func:`room_scene` (keyword arguments passed on) to ``path``; the suffix picks
+    the format (:data:`FORMATS`). Returns the path."""
+    import trimesh
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if suffix not in FORMATS:
+        raise PedmeshError(f"{path}: unsupported 3-D format '{suffix or '(none)'}' "
+                           f"(use {', '.join(FORMATS)})")
+    scene = room_scene(room, **kw)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    if suffix == ".glb":
+        data = scene.export(file_type="glb")
+    elif suffix == ".gltf":
+        data = trimesh.exchange.gltf.export_gltf(scene, embed_buffers=True)["model.gltf"]
+    else:
+        merged = trimesh.util.concatenate(list(scene.dump()))
+        data = merged.export(file_type=suffix[1:])
+    tmp = p.with_name(p.name + ".part")
+    with open(tmp, "wb") as f:
+        f.write(data if isinstance(data, bytes) else data.encode("utf-8"))
+    tmp.replace(p)
+    return p
+
+
+def read_positions(run_dir: Path, t: float | None) -> tuple[float, np.ndarray]:
+    """(frame time [s], positions (n, 2) [m]) of the pedestrians frame nearest ``t`` (the
+    middle of the run if None) of a run folder."""
+    import pyvista as pv
+
+    from .vtk import read_pvd_index
+
+    pvd = Path(run_dir) / "pedestrians.pvd"
+    if not pvd.exists():
+        raise PedmeshError(f"{run_dir}: no pedestrians.pvd (a social force run folder?)")
+    frames = read_pvd_index(pvd)
+    if not frames:
+        raise PedmeshError(f"{pvd}: no frames")
+    when = frames[-1][0] / 2 if t is None else t
+    ft, f = min(frames, key=lambda fr: abs(fr[0] - when))
+    pts = np.asarray(pv.read(f).points, float).reshape(-1, 3)[:, :2]
+    return ft, pts
