@@ -19,7 +19,7 @@ import pytest
 from pedmesh.cli import main
 from pedmesh.run.output import RunWriter, run_status
 
-FAST_GEOMETRIES = ["corridor_bottleneck.json", "l_shaped.json", "pillar_hall.json"]
+FAST_GEOMETRIES = ["corridor_bottleneck.json", "l_shaped.json", "pillar_hall.json", "foyer.svg"]
 ALL_GEOMETRIES = FAST_GEOMETRIES + ["example1.json", "example2.json", "example3.json"]
 
 
