@@ -8,7 +8,8 @@ from typing import Callable
 
 from ...errors import RoomFileError, UnsupportedFormatError
 
-__all__ = ["RoomFormat", "register_format", "formats", "format_for", "read_text"]
+__all__ = ["RoomFormat", "register_format", "formats", "format_for", "read_text",
+           "existing_file"]
 
 
 @dataclass(frozen=True)
@@ -46,13 +47,21 @@ def format_for(path: str | Path) -> RoomFormat:
     return _FORMATS[suffix]
 
 
-def read_text(path: str | Path) -> str:
-    """The file's text, with clear errors for missing, unreadable or empty files."""
+def existing_file(path: str | Path) -> Path:
+    """``path`` as a Path, with clear errors if it is missing, a directory or empty."""
     p = Path(path)
     if not p.exists():
         raise RoomFileError(f"{path}: no such file")
     if p.is_dir():
         raise RoomFileError(f"{path}: is a directory, not a geometry file")
+    if p.stat().st_size == 0:
+        raise RoomFileError(f"{path}: the file is empty")
+    return p
+
+
+def read_text(path: str | Path) -> str:
+    """The file's text, with clear errors for missing, unreadable or empty files."""
+    p = existing_file(path)
     try:
         text = p.read_text(encoding="utf-8")
     except UnicodeDecodeError:

@@ -20,7 +20,7 @@ from typing import Any
 
 from ...errors import RoomFileError
 from ..room import Room
-from ._registry import RoomFormat, register_format
+from ._registry import RoomFormat, existing_file, register_format
 from .native import room_from_dict, room_to_dict
 
 __all__ = ["read_dxf", "write_dxf", "FLATTEN_DISTANCE"]
@@ -70,11 +70,7 @@ def read_dxf(path: str | Path) -> Room:
     import ezdxf
     import ezdxf.path
 
-    p = Path(path)
-    if not p.exists():
-        raise RoomFileError(f"{path}: no such file")
-    if p.stat().st_size == 0:
-        raise RoomFileError(f"{path}: the file is empty")
+    p = existing_file(path)
     try:
         doc = ezdxf.readfile(p)
     except (ezdxf.DXFError, OSError, UnicodeDecodeError, ValueError) as exc:

@@ -36,7 +36,7 @@ import numpy as np
 
 from ...errors import RoomFileError
 from ..room import Room
-from ._registry import RoomFormat, register_format
+from ._registry import RoomFormat, existing_file, register_format
 from .dxf import _ROLES, FLATTEN_DISTANCE, _role
 from .native import room_from_dict
 
@@ -124,11 +124,7 @@ def _param(path, el: ET.Element, groups: list[ET.Element]) -> dict[str, Any]:
 
 def read_svg(path: str | Path) -> Room:
     """Read a room from an SVG floor plan (see the module docstring for the rules)."""
-    p = Path(path)
-    if not p.exists():
-        raise RoomFileError(f"{path}: no such file")
-    if p.stat().st_size == 0:
-        raise RoomFileError(f"{path}: the file is empty")
+    p = existing_file(path)
     try:
         root = ET.parse(p).getroot()
     except ET.ParseError as exc:
