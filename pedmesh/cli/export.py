@@ -40,6 +40,8 @@ def run(args: argparse.Namespace) -> int:
     if Path(args.output).suffix.lower() not in FORMATS:
         raise PedmeshError(f"{args.output}: unsupported 3-D format (use "
                            f"{', '.join(FORMATS)})")
+    if args.time is not None and not args.run:
+        raise PedmeshError("--time needs --run RUN_DIR (the run whose crowd to show)")
     room = load_room(args.geometry)
     positions, note = None, ""
     if args.run:

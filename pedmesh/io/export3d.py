@@ -13,6 +13,12 @@
 The suffix picks the format: ``.glb`` (binary glTF 2.0, one file, colours kept; Blender's
 File > Import > glTF, three.js, https://gltf-viewer.donmccurdy.com), ``.gltf`` (glTF with
 embedded buffers), ``.obj``, ``.ply``, ``.stl`` (one merged mesh; STL has no colours).
+
+Axes: glTF's up axis is +y and Blender's OBJ importer and three.js take OBJ files as y-up
+too, so ``.glb``, ``.gltf`` and ``.obj`` files hold the scene turned z-up to y-up, as the
+point (x, y, z) -> (x, z, -y) (glTF: a rotation on every node; the meshes stay in the room's
+frame); the importers turn it back, so the floor lies flat. ``.ply`` and ``.stl`` stay
+z-up, as Blender reads them.
 """
 
 from __future__ import annotations
@@ -24,9 +30,12 @@ import numpy as np
 
 from ..errors import PedmeshError
 
-__all__ = ["room_scene", "export_room_3d", "read_positions", "FORMATS"]
+__all__ = ["room_scene", "export_room_3d", "read_positions", "FORMATS", "Z_UP_TO_Y_UP"]
 
 FORMATS = (".glb", ".gltf", ".obj", ".ply", ".stl")
+#: z-up (pedmesh) to y-up (glTF, OBJ): (x, y, z) -> (x, z, -y)
+Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+Y_UP_SUFFIXES = (".glb", ".gltf", ".obj")
 _COLOURS = {"floor": (225, 225, 220, 255), "walls": (150, 150, 150, 255),
             "obstacles": (95, 95, 100, 255), "exits": (40, 170, 60, 255),
             "crowd": (40, 90, 200, 255)}
@@ -111,6 +120,8 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
         raise PedmeshError(f"{path}: unsupported 3-D format '{suffix or '(none)'}' "
                            f"(use {', '.join(FORMATS)})")
     scene = room_scene(room, **kw)
+    if suffix in Y_UP_SUFFIXES:
+        scene.apply_transform(Z_UP_TO_Y_UP)
     p.parent.mkdir(parents=True, exist_ok=True)
     if suffix == ".glb":
         data = scene.export(file_type="glb")

@@ -17,11 +17,15 @@ def test_glb_round_trip(load_shipped, tmp_path):
     out = export_room_3d(room, tmp_path / "hall.glb", positions=pos, wall_height=3.0)
     scene = trimesh.load(out)
     assert set(scene.geometry) == {"floor", "walls", "obstacles", "exits", "crowd"}
-    (x0, y0, z0), (x1, y1, z1) = scene.bounds
+    # glTF is y-up: the room's (x, y, z) is stored as (x, z, -y), which viewers stand upright
+    (x0, h0, mz1), (x1, h1, mz0) = scene.bounds
     bx0, by0, bx1, by1 = room.walkable.bounds
-    assert (x0, y0) == pytest.approx((bx0 - 0.2, by0 - 0.2), abs=1e-5)  # walls 0.2 m thick
-    assert (x1, y1) == pytest.approx((bx1 + 0.2, by1 + 0.2), abs=1e-5)
-    assert z0 == 0.0 and z1 == pytest.approx(3.0)
+    assert (x0, -mz0) == pytest.approx((bx0 - 0.2, by0 - 0.2), abs=1e-5)  # walls 0.2 m thick
+    assert (x1, -mz1) == pytest.approx((bx1 + 0.2, by1 + 0.2), abs=1e-5)
+    assert h0 == pytest.approx(0.0, abs=1e-9) and h1 == pytest.approx(3.0)
+    # each mesh keeps the room's frame (z up); the rotation is on its node
+    (gx0, gy0, gz0), (gx1, gy1, gz1) = scene.geometry["walls"].bounds
+    assert (gy0, gz0, gy1, gz1) == pytest.approx((by0 - 0.2, 0.0, by1 + 0.2, 3.0), abs=1e-5)
     floor = scene.geometry["floor"]
     assert floor.area == pytest.approx(room.area, rel=1e-6)
     obstacles = scene.geometry["obstacles"]
@@ -49,10 +53,15 @@ def test_glb_round_trip(load_shipped, tmp_path):
 
 def test_other_formats_and_errors(load_shipped, tmp_path):
     room = load_shipped("l_shaped.json")
-    for suffix in (".gltf", ".obj", ".ply", ".stl"):
-        p = export_room_3d(room, tmp_path / f"room{suffix}")
+    height_axis = {".gltf": 1, ".obj": 1, ".ply": 2, ".stl": 2}  # y-up as glTF/OBJ readers
+    for suffix, axis in height_axis.items():
+        p = export_room_3d(room, tmp_path / f"room{suffix}", wall_height=2.0)
         assert p.stat().st_size > 1000
-        assert len(trimesh.load(p, force="mesh").faces) > 100
+        loaded = trimesh.load(p, force="mesh")
+        assert len(loaded.faces) > 100
+        lo, hi = loaded.bounds
+        assert (lo[axis], hi[axis]) == pytest.approx((0.0, 2.0), abs=1e-6)
+        assert not list(tmp_path.glob("*.part"))
     from pedmesh import PedmeshError
 
     with pytest.raises(PedmeshError, match="unsupported 3-D format"):
@@ -73,6 +82,9 @@ def test_export_command_with_a_run(geometries_dir, tmp_path, capsys):
                    "--run", str(run)])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and "another room file" in err[0]
+    status = main(["export", room, "-o", str(out), "--time", "3"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1 and "--time needs --run" in err[0]
     status = main(["export", room, "-o", str(tmp_path / "x.fbx")])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and "unsupported 3-D format" in err[0]
