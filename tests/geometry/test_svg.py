@@ -93,6 +93,15 @@ def test_group_transforms_and_layers(tmp_path):
      "data-density='many' is not a number"),
     ('<rect id="room" x="0" y="0" width="9" height="9"/>'
      '<ellipse id="obstacle-e" cx="4" cy="4" rx="1" ry="2"/>', "", "no geometry"),
+    ('<rect id="room" x="0" y="0" width="9" height="9"/>'
+     '<rect id="start" x="1" y="1" width="2" height="2" data-count="2.5"/>', "",
+     "data-count='2.5' is not a whole number"),
+    ('<rect id="room" x="0" y="0" width="9" height="9"/>'
+     '<rect id="start" x="1" y="1" width="2" height="2" data-count="4" data-spacing="1"/>', "",
+     "give one of data-count"),
+    ('<rect id="room" x="0" y="0" width="9" height="9"/>'
+     '<rect id="room-2" x="20" y="0" width="9" height="9"/>', "",
+     "2 elements have the role 'room'"),
 ])
 def test_errors_name_the_problem(tmp_path, body, root, message):
     with pytest.raises(RoomFileError, match=message):
@@ -107,3 +116,41 @@ def test_not_an_svg(tmp_path):
     p.write_text("<svg")
     with pytest.raises(RoomFileError, match="not a valid SVG file"):
         load_room(p)
+
+
+@pytest.mark.parametrize("element", [
+    '<rect id="obstacles-a" x="3" y="3" width="1" height="1"/>',
+    '<line id="exits" x1="9" y1="1" x2="9" y2="2"/>',
+    '<line id="Exit1" x1="9" y1="1" x2="9" y2="2"/>',
+    '<g inkscape:label="obstacle1"><rect x="3" y="3" width="1" height="1"/></g>',
+    '<line inkscape:label="measurement-door" x1="5" y1="0" x2="5" y2="9"/>',
+    '<rect id="rooms" x="0" y="0" width="9" height="9"/>',
+])
+def test_near_misses_of_a_role_are_errors(tmp_path, element):
+    body = '<rect id="room" x="0" y="0" width="9" height="9"/>' + element
+    with pytest.raises(RoomFileError, match=r"unknown role; the roles are room, obstacle"):
+        load_room(_write(tmp_path, body))
+
+
+def test_other_ids_are_ignored_and_labels_fall_back_to_ids(tmp_path):
+    p = _write(tmp_path, """
+      <rect id="room" x="0" y="0" width="10" height="8"/>
+      <rect id="stairs" x="1" y="1" width="2" height="2"/>
+      <rect id="rect12" x="1" y="1" width="2" height="2"/>
+      <g inkscape:label="Layer 1" id="layer1">
+        <rect inkscape:label="pillar" id="obstacle-p" x="4" y="4" width="1" height="1"/>
+      </g>
+      <line id="exit" x1="10" y1="1" x2="10" y2="2"/>""")
+    room = load_room(p)
+    assert [o.name for o in room.obstacles] == ["p"]
+    assert [e.name for e in room.exits] == ["exit"]
+
+
+def test_compound_room_path_holes_are_obstacles(tmp_path):
+    p = _write(tmp_path, """
+      <path id="room-hall" d="M 0 0 H 10 V 8 H 0 Z M 2 2 H 3 V 3 H 2 Z M 6 5 h 1 v 2 h -1 z"/>
+      <line id="exit" x1="10" y1="1" x2="10" y2="2"/>""")
+    room = load_room(p)
+    assert room.name == "hall" and room.area == pytest.approx(80 - 1 - 2)
+    holes = sorted(o.shape.bounds for o in room.obstacles)
+    assert holes == [(2.0, 5.0, 3.0, 6.0), (6.0, 1.0, 7.0, 3.0)]  # y flipped about y = 8

@@ -1,12 +1,17 @@
 """Rooms from SVG floor plans, by element id or label (geometry through trimesh).
 
-An element's ``id`` (or Inkscape's ``inkscape:label``) gives its role, as DXF layers do:
-``room``, ``obstacle``, ``exit``, ``start``, ``measurement_line`` or ``measurement_area``,
-optionally followed by ``-NAME`` or ``_NAME`` (``obstacle-pillar1``, ``exit_north``). An
+An element's Inkscape label (``inkscape:label``) or else its ``id`` gives its role, as DXF
+layers do: ``room``, ``obstacle``, ``exit``, ``start``, ``measurement_line`` or
+``measurement_area``, optionally followed by ``-NAME`` or ``_NAME`` (``obstacle-pillar1``,
+``exit_north``). Other ids are ignored, except near misses of a role (``exits``,
+``obstacles-a``, ``exit1``, ``measurement-door``), which are errors rather than silently
+dropped. An
 element without a role of its own takes the role of the nearest group (``<g>``, e.g. an
 Inkscape layer) that has one: a group ``obstacle`` holding ten ``rect`` elements gives ten
 obstacles, named by their own labels or ids where those are not an editor's automatic ones
-(``rect12``). Elements with no role on them or their groups are ignored.
+(``rect12``). Elements with no role on them or their groups are ignored. The ``room`` may be
+a compound path (an outline with holes, as Inkscape's Path > Difference makes): its largest
+ring is the outline and the others are obstacles.
 
 Shapes: ``rect``, ``polygon``, ``polyline``, ``line``, ``circle`` and ``path`` (lines,
 arcs and Bezier curves), with their ``transform`` attributes and those of their groups;
@@ -17,14 +22,16 @@ obstacle, start, measurement area) must be closed. A start area takes ``data-cou
 
 Units and axes: one SVG user unit is one metre unless the root ``<svg>`` element says
 otherwise with ``data-pedmesh-scale`` (metres per user unit, e.g. ``0.01`` for a drawing in
-centimetres). SVG's y axis points down; pedmesh's points up, so y is mirrored about the
-room's top edge (the drawing is not mirrored: what is at the top of the picture is at the
-largest y).
+centimetres). SVG's y axis points down; pedmesh's points up, so y is flipped: a point at
+SVG (x, y) is at (x, y_max - y) times the scale, y_max being the room's lowest point in the
+picture. The room is not mirrored: the top of the picture is the largest y, and the room's
+bottom edge is at y = 0.
 """
 
 from __future__ import annotations
 
 import copy
+import difflib
 import io
 import math
 import re
@@ -55,6 +62,33 @@ def _tag(el: ET.Element) -> str:
 
 def _label(el: ET.Element) -> str | None:
     return el.get(_INKSCAPE_LABEL) or el.get("id")
+
+
+_ROLE_WORDS = ("room", "obstacle", "exit", "start", "measurement")
+_ROLE_LIST = "room, obstacle, exit, start, measurement_line, measurement_area"
+
+
+def _role_of(path, el: ET.Element) -> tuple[str, str | None] | None:
+    """(role, name or None) from the element's Inkscape label or else its id; None if neither
+    names a role. A near miss of a role (``exits``, ``obstacle1``) is an error."""
+    for text in (el.get(_INKSCAPE_LABEL), el.get("id")):
+        if not text:
+            continue
+        found = _role(text)
+        if found is not None:
+            return found
+        word = re.split(r"[-_\s]", text.strip().lower(), maxsplit=1)[0]
+        near = difflib.get_close_matches(word, _ROLE_WORDS, n=1, cutoff=0.85)
+        if near:
+            raise RoomFileError(f"{path}: element '{text}' (<{_tag(el)}>): unknown role; "
+                                f"the roles are {_ROLE_LIST}, each optionally followed by "
+                                "-NAME")
+    return None
+
+
+def _ring_area(pts: np.ndarray) -> float:
+    x, y = pts[:, 0], pts[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def _walk(el: ET.Element, ancestors: list[ET.Element], out: list) -> None:
@@ -118,6 +152,9 @@ def _param(path, el: ET.Element, groups: list[ET.Element]) -> dict[str, Any]:
             if not _NUMBER.match(v):
                 raise RoomFileError(f"{path}: start area '{_label(el)}': data-{k}={v!r} is not "
                                     "a number")
+            if k == "count" and not float(v).is_integer():
+                raise RoomFileError(f"{path}: start area '{_label(el)}': data-count={v!r} is "
+                                    "not a whole number")
             return {k: int(float(v)) if k == "count" else float(v)}
     return {"spacing": 1.0}
 
@@ -141,12 +178,12 @@ def read_svg(path: str | Path) -> Room:
     _walk(root, [], found)
     shapes: dict[str, list[tuple[str | None, np.ndarray, ET.Element, list]]] = {
         r: [] for r in _ROLES}
+    group_roles = {id(g): _role_of(path, g) for _, groups in found for g in groups}
     for el, groups in found:
-        own = _role(_label(el) or "")
-        role_name = own
-        holders = [g for g in groups if _role(_label(g) or "")]
+        role_name = _role_of(path, el)
+        holders = [g for g in groups if group_roles[id(g)]]
         if role_name is None and holders:
-            role, gname = _role(_label(holders[-1]))
+            role, gname = group_roles[id(holders[-1])]
             own = _label(el)
             role_name = (role, own if own and not _AUTO_ID.match(own) else gname)
         if role_name is None:
@@ -169,8 +206,13 @@ def read_svg(path: str | Path) -> Room:
     rooms = shapes["room"]
     if not rooms:
         raise RoomFileError(f"{path}: no element with id or label 'room' (the outer walls)")
-    if len(rooms) > 1:
-        raise RoomFileError(f"{path}: {len(rooms)} 'room' outlines; expected one")
+    n_elements = len({id(el) for _, _, el, _ in rooms})
+    if n_elements > 1:
+        raise RoomFileError(f"{path}: {n_elements} elements have the role 'room' ("
+                            f"{', '.join(repr(_label(r[2])) for r in rooms)}); expected one")
+    if len(rooms) > 1:  # a compound path: the largest ring is the outline, the rest holes
+        rooms.sort(key=lambda r: _ring_area(r[1]), reverse=True)
+        shapes["obstacle"][:0] = [(None, pts, el, groups) for _, pts, el, groups in rooms[1:]]
     top = float(rooms[0][1][:, 1].max())
 
     def to_m(pts: np.ndarray) -> list[tuple[float, float]]:
