@@ -154,3 +154,11 @@ def test_compound_room_path_holes_are_obstacles(tmp_path):
     assert room.name == "hall" and room.area == pytest.approx(80 - 1 - 2)
     holes = sorted(o.shape.bounds for o in room.obstacles)
     assert holes == [(2.0, 5.0, 3.0, 6.0), (6.0, 1.0, 7.0, 3.0)]  # y flipped about y = 8
+
+
+def test_missing_svg_packages_named(geometries_dir, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "svg.path", None)  # import svg.path raises ImportError
+    with pytest.raises(RoomFileError, match="needs the packages lxml and svg.path"):
+        load_room(geometries_dir / "foyer.svg")

@@ -162,6 +162,12 @@ def _param(path, el: ET.Element, groups: list[ET.Element]) -> dict[str, Any]:
 def read_svg(path: str | Path) -> Room:
     """Read a room from an SVG floor plan (see the module docstring for the rules)."""
     p = existing_file(path)
+    try:  # trimesh's SVG reader needs both; without them every element would fail alike
+        import lxml.etree  # noqa: F401
+        import svg.path  # noqa: F401
+    except ImportError as exc:
+        raise RoomFileError(f"{path}: reading SVG rooms needs the packages lxml and svg.path "
+                            f"(pip install lxml svg.path): {exc}") from None
     try:
         root = ET.parse(p).getroot()
     except ET.ParseError as exc:
