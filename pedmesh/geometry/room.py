@@ -541,9 +541,9 @@ class Room:
         size: Any = None,
         max_cells: float | None = None,
     ):
-        """Triangulate the walkable area; see :func:`pedmesh.mesh.triangulate`
-        (``max_cells`` None: its default limit)."""
-        from ..mesh.triangulate import MAX_CELLS, triangulate
+        """Triangulate the walkable area; see :func:`pedmesh.mesh.triangulate` (``max_cells``
+        None: its default limit of 2,000,000 triangles; ``math.inf``: no limit)."""
+        from ..mesh.triangulate import triangulate
 
         return triangulate(
             self,
@@ -552,7 +552,7 @@ class Room:
             exit_size=exit_size,
             size_growth=size_growth,
             size=size,
-            max_cells=MAX_CELLS if max_cells is None else max_cells,
+            max_cells=max_cells,
         )
 
     def with_changes(self, **changes: Any) -> "Room":

@@ -9,6 +9,7 @@ tags every boundary edge of the result as wall, obstacle k or exit k.
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Callable
 
 import numpy as np
@@ -19,7 +20,7 @@ from ..errors import MeshError
 from ..geometry.tolerances import EXIT_TOLERANCE
 from .trimesh import BoundaryKind, TriMesh
 
-__all__ = ["triangulate", "exit_size_field", "estimate_cells", "MAX_CELLS"]
+__all__ = ["triangulate", "exit_size_field", "estimate_cells", "check_max_cells", "MAX_CELLS"]
 
 _MARKER_OFFSET = 2  # Triangle reserves markers 0 and 1
 
@@ -73,6 +74,10 @@ def _pslg(room):
     )
 
 
+def _is_real(x) -> bool:
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
 def exit_size_field(room, exit_size: float, growth: float = 0.2) -> Callable:
     """A max-area field that refines the mesh near the exits.
 
@@ -80,8 +85,10 @@ def exit_size_field(room, exit_size: float, growth: float = 0.2) -> Callable:
     nearest exit; the returned callable maps (p, 2) points [m] to the area [m^2] of an
     equilateral triangle with that edge.
     """
-    if not exit_size > 0:
-        raise MeshError(f"exit_size must be positive, got {exit_size!r}")
+    if not (_is_real(exit_size) and math.isfinite(exit_size) and exit_size > 0):
+        raise MeshError(f"exit_size must be a positive number of metres, got {exit_size!r}")
+    if not (_is_real(growth) and math.isfinite(growth) and growth >= 0):
+        raise MeshError(f"size_growth must be a number >= 0 [m/m], got {growth!r}")
     lines = shapely.MultiLineString([room.exit_polyline(k) for k in range(len(room.exits))])
 
     def size(xy: np.ndarray) -> np.ndarray:
@@ -103,6 +110,14 @@ def _fixed(x: float) -> str:
     """``x`` in plain positional notation with every significant digit: Triangle reads its
     switches' numbers digit by digit and misreads e-notation (``a1e-06`` is not 1e-6)."""
     return np.format_float_positional(float(x), unique=True, trim="-")
+
+
+def check_max_cells(max_cells) -> None:
+    """Raise a MeshError unless ``max_cells`` is None or a positive number (inf allowed)."""
+    if max_cells is None:
+        return
+    if not (_is_real(max_cells) and max_cells > 0):  # nan fails the comparison
+        raise MeshError(f"max_cells must be a positive number (inf: no limit), got {max_cells!r}")
 
 
 def estimate_cells(room, max_area: float, fields: list | None = None,
@@ -136,7 +151,7 @@ def triangulate(
     size_growth: float = 0.2,
     size: Callable[[np.ndarray], np.ndarray] | None = None,
     max_refinements: int = 12,
-    max_cells: float | None = MAX_CELLS,
+    max_cells: float | None = None,
 ) -> TriMesh:
     """Triangulate the walkable area of ``room``.
 
@@ -156,8 +171,9 @@ def triangulate(
         A custom field: callable mapping (p, 2) points [m] to a max triangle area [m^2]. It is
         combined (minimum) with ``max_area`` and the exit grading.
     max_cells
-        Refuse (a :class:`~pedmesh.errors.MeshError`) to build a mesh estimated to have
-        more triangles than this (default 2,000,000; ``None`` or ``math.inf``: no limit).
+        Refuse (a :class:`~pedmesh.errors.MeshError`) to build a mesh estimated (by
+        :func:`estimate_cells`) to have more triangles than this; ``None`` (the default):
+        :data:`MAX_CELLS` (2,000,000); ``math.inf``: no limit.
 
     Returns
     -------
@@ -166,9 +182,9 @@ def triangulate(
     """
     import triangle as tr
 
-    if not (np.isfinite(max_area) and max_area > 0):
+    if not (_is_real(max_area) and math.isfinite(max_area) and max_area > 0):
         raise MeshError(f"max_area must be a positive number of m^2, got {max_area!r}")
-    if not (np.isfinite(min_angle) and 0 <= min_angle <= 34):
+    if not (_is_real(min_angle) and math.isfinite(min_angle) and 0 <= min_angle <= 34):
         raise MeshError(
             f"min_angle must be between 0 and 34 degrees (Triangle's limit), got {min_angle!r}"
         )
@@ -180,15 +196,15 @@ def triangulate(
     if size is not None:
         fields.append(size)
 
-    if max_cells is not None and not (isinstance(max_cells, (int, float))
-                                      and not isinstance(max_cells, bool) and max_cells > 0):
-        raise MeshError(f"max_cells must be a positive number, got {max_cells!r}")
-    if max_cells is not None and math.isfinite(max_cells):
+    check_max_cells(max_cells)
+    limit = MAX_CELLS if max_cells is None else float(max_cells)
+    if math.isfinite(limit):
         n_est = estimate_cells(room, max_area, fields)
-        if n_est > max_cells:
+        if n_est > limit:
             raise MeshError(
-                f"this mesh would have about {n_est:,.0f} triangles, more than the limit of "
-                f"{max_cells:,.0f}; use a larger max_area, or raise the limit (--max-cells N)"
+                f"room '{room.name}': this mesh would have about {n_est:,.0f} triangles, more "
+                f"than the limit of {limit:,.0f}; use a larger max_area, or raise the limit "
+                "(--max-cells N, or max_cells=N in Python; inf for none)"
             )
     verts, segs, tags, holes = _pslg(room)
     markers = (np.arange(len(segs)) + _MARKER_OFFSET).reshape(-1, 1)
@@ -219,7 +235,7 @@ def triangulate(
                     segment_markers=out["segment_markers"],
                     triangle_max_area=target,
                 ),
-                f"rpq{min_angle:g}a",
+                f"rpq{_fixed(min_angle)}a",
             )
     except Exception as exc:  # Triangle reports failures as bare RuntimeErrors
         raise MeshError(f"room '{room.name}': triangulation failed ({exc})") from None

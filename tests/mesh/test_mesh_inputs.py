@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from pedmesh import Exit, MeshError, Room
@@ -18,6 +19,41 @@ SQUARE = Room([(0, 0), (0.1, 0), (0.1, 0.1), (0, 0.1)], exits=[Exit("e", [(0.1, 
 def test_fixed_notation_is_exact_and_plain(x):
     s = _fixed(x)
     assert "e" not in s.lower() and float(s) == x
+
+
+@pytest.mark.parametrize("max_area", [1e-6, 5e-5])
+def test_area_bounds_in_e_notation_range_are_obeyed(max_area):
+    """Every triangle is within the bound, so area / max_area is a lower bound of the count;
+    Triangle's quality mesh makes about 1.6 times that (at most 2.2 here)."""
+    mesh = triangulate(SQUARE, max_area=max_area)
+    assert mesh.areas.max() <= max_area * (1 + 1e-9)
+    assert 1.0 <= mesh.n_triangles * max_area / SQUARE.area <= 2.2
+
+
+def test_every_switch_string_reaches_triangle_in_plain_notation(monkeypatch):
+    """The initial call and the graded refinements (per-triangle areas) get the angle and
+    the area as plain decimals that parse back to the very numbers asked for."""
+    import re
+
+    import triangle
+
+    seen = []
+    real = triangle.triangulate
+
+    def spy(tri, opts=""):
+        seen.append(opts)
+        return real(tri, opts)
+
+    monkeypatch.setattr(triangle, "triangulate", spy)
+    angle, area = 25.000000000000004, 3e-5
+    mesh = triangulate(SQUARE, max_area=area, min_angle=angle, exit_size=0.002)
+    assert len(seen) >= 2 and seen[0].startswith("pq") and seen[1].startswith("rpq")
+    for opts in seen:
+        assert "e" not in opts.lower(), opts
+        assert float(re.search(r"q([0-9.]+)", opts).group(1)) == angle
+    assert float(re.fullmatch(r"pq[0-9.]+a([0-9.]+)", seen[0]).group(1)) == area
+    assert all(re.fullmatch(r"rpq[0-9.]+a", o) for o in seen[1:])
+    assert mesh.areas.max() <= area * (1 + 1e-9)
 
 
 def test_tiny_max_area_gives_the_triangles_it_asks_for():
@@ -60,3 +96,46 @@ def test_oversized_mesh_is_refused_before_it_is_built(load_shipped, geometries_d
                    "--max-cells", "0"])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and "max_cells must be a positive" in err[0]
+
+
+def test_default_limit_and_bad_limits():
+    """None means the default limit in triangulate() as in Room.mesh(); the check comes
+    before any meshing (1.6e7 triangles would take minutes)."""
+    for build in (lambda **kw: triangulate(SQUARE, **kw), SQUARE.mesh):
+        with pytest.raises(MeshError, match=r"limit of 2,000,000.*--max-cells N"):
+            build(max_area=1e-9)
+        with pytest.raises(MeshError, match=r"limit of 2,000,000"):
+            build(max_area=1e-9, max_cells=None)
+    for bad in (0, -5, float("nan"), True, "100"):
+        with pytest.raises(MeshError, match="max_cells must be a positive number"):
+            triangulate(SQUARE, max_cells=bad)
+    assert triangulate(SQUARE, max_area=1e-4, max_cells=np.int64(1000)).n_triangles < 1000
+    with pytest.raises(MeshError, match=r"more than the limit of 100;"):
+        triangulate(SQUARE, max_area=1e-4, max_cells=np.int64(100))
+
+
+@pytest.mark.parametrize("kw", [dict(exit_size=float("inf")), dict(exit_size=-1.0),
+                                dict(exit_size=0.01, size_growth=float("nan")),
+                                dict(max_area=float("inf")), dict(min_angle=float("nan"))])
+def test_non_finite_mesh_options_are_refused(kw):
+    with pytest.raises(MeshError):
+        triangulate(SQUARE, **kw)
+
+
+def test_mesher_does_not_import_the_room_model():
+    """The tolerance the mesher shares with the room model lives in its own module; room.py
+    re-exports it for old imports."""
+    import ast
+    import importlib
+    from pathlib import Path
+
+    room_mod = importlib.import_module("pedmesh.geometry.room")
+    tri_mod = importlib.import_module("pedmesh.mesh.triangulate")  # not the function
+    from pedmesh.geometry import tolerances
+
+    tree = ast.parse(Path(tri_mod.__file__).read_text(encoding="utf-8"))
+    names = [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    names += [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    assert not [n for n in names if n.endswith("room") or n in ("..geometry", "geometry")]
+    assert "geometry.tolerances" in names
+    assert room_mod.EXIT_TOLERANCE is tolerances.EXIT_TOLERANCE == 1e-6
