@@ -30,7 +30,8 @@ class MacroRunOptions:
     def __post_init__(self) -> None:
         for f in fields(self):
             v = getattr(self, f.name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool)
+            if not (ok and math.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{f.name}' must be positive, got {v!r}")
 
 
@@ -54,6 +55,34 @@ def initial_density(room, mesh) -> np.ndarray:
     return rho
 
 
+#: model parameters that are words, switches (0/1), positive, or >= 0 by their meaning
+_TEXT = {"calibration", "exit"}
+_SWITCHES = {"walls", "friction", "split_friction"}
+_POSITIVE = {"U_f", "beta", "tau", "rho_cut", "u_max", "A", "B", "k", "kappa", "m", "r",
+             "cutoff", "lr_strength", "lr_length", "gamma1"}
+_NON_NEGATIVE = {"c0"}
+_OPTIONAL = {"u_max", "gamma1"}  #: None: derived from the other parameters
+
+
+def _check_model_params(params: dict[str, Any]) -> None:
+    """One-line errors for model parameters before the model is built (the model classes
+    check some of them; this checks all: finite, the sign their meaning needs, switches
+    0/1), so no run starts with a nonsensical value."""
+    for k, v in params.items():
+        if k in _TEXT or (v is None and k in _OPTIONAL):
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise ParameterError(f"parameter '{k}' must be a number, got {v!r}")
+        if not math.isfinite(v):
+            raise ParameterError(f"parameter '{k}' must be a finite number, got {v!r}")
+        if k in _SWITCHES and v not in (0, 1):
+            raise ParameterError(f"parameter '{k}' must be 0 or 1 (off or on), got {v!r}")
+        if k in _POSITIVE and not v > 0:
+            raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
+        if k in _NON_NEGATIVE and not v >= 0:
+            raise ParameterError(f"parameter '{k}' must be >= 0, got {v!r}")
+
+
 def _split(overrides: dict[str, Any], targets: dict[str, set[str]]) -> dict[str, dict]:
     known = set().union(*targets.values())
     unknown = sorted(set(overrides) - known)
@@ -73,25 +102,12 @@ class MacroRun:
             "fv": {f.name for f in fields(FVOptions)},
             "run": {f.name for f in fields(MacroRunOptions)},
         })
-        fv = parts["fv"]
-        for k, v in list(fv.items()):
-            if isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isfinite(v):
-                raise ParameterError(f"parameter '{k}' must be a finite number, got {v!r}")
-        if "order" in fv:
-            v = fv["order"]
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or v not in (1, 2, 3):
-                raise ParameterError(f"parameter 'order' must be 1, 2 or 3, got {v!r}")
-            fv["order"] = int(v)
-        for k in ("limiter", "route_every_step"):
-            if k in fv:
-                v = fv[k]
-                if v not in (0, 1) or isinstance(v, str):
-                    raise ParameterError(f"parameter '{k}' must be 0 or 1 (off or on), "
-                                         f"got {v!r}")
-                fv[k] = bool(v)
-        self.model = macro_model(model, **parts["model"])
+        # every value is checked (FVOptions and MacroRunOptions check their own) before
+        # anything is built
         self.fv_options = FVOptions(**parts["fv"])
         self.options = MacroRunOptions(**parts["run"])
+        _check_model_params(parts["model"])
+        self.model = macro_model(model, **parts["model"])
         self.name = model
         self.mesh = mesh
         #: things the user should know about this run (e.g. a calibration for other parameters)

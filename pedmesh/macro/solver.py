@@ -50,15 +50,37 @@ class FVOptions:
     route_every_step: bool = True  #: re-solve the eikonal every step (else only at start)
 
     def __post_init__(self) -> None:
-        if self.order not in (1, 2, 3):
+        def real(v) -> bool:
+            return isinstance(v, (int, float, np.integer, np.floating)) and \
+                not isinstance(v, (bool, np.bool_))
+
+        for name in ("order", "cfl", "rho_eps", "eps_hat"):
+            v = getattr(self, name)
+            if v is None and name == "cfl":
+                continue
+            if not real(v):
+                raise ParameterError(f"parameter '{name}' must be a number, got {v!r}")
+            if not math.isfinite(v):
+                raise ParameterError(f"parameter '{name}' must be a finite number, got {v!r}")
+        if self.order not in (1, 2, 3):  # 2.5 is not coerced to 2
             raise ParameterError(f"parameter 'order' must be 1, 2 or 3, got {self.order!r}")
+        object.__setattr__(self, "order", int(self.order))
+        for name in ("limiter", "route_every_step"):
+            v = getattr(self, name)
+            if isinstance(v, str) or v not in (0, 1):  # also True/False, 0.0/1.0
+                raise ParameterError(f"parameter '{name}' must be 0 or 1 (off or on), "
+                                     f"got {v!r}")
+            object.__setattr__(self, name, bool(v))
         if self.cfl is not None and not (0 < self.cfl <= 1):
             raise ParameterError(f"parameter 'cfl' must be in (0, 1], got {self.cfl!r}")
-        if not (math.isfinite(self.eps_hat) and self.eps_hat > 0):
+        if not self.eps_hat > 0:
             raise ParameterError(f"parameter 'eps_hat' must be positive, got {self.eps_hat!r}")
-        if not (math.isfinite(self.rho_eps) and self.rho_eps >= 0):
+        if not self.rho_eps >= 0:
             raise ParameterError(f"parameter 'rho_eps' must be >= 0 [ped/m^2], got "
                                  f"{self.rho_eps!r}")
+        if self.exit is not None and not isinstance(self.exit, str):
+            raise ParameterError(f"parameter 'exit' must be the name of an exit condition, "
+                                 f"got {self.exit!r}")
 
 
 @dataclass

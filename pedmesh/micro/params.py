@@ -13,7 +13,8 @@ from typing import Any, Iterable
 
 from ..errors import ParameterError
 
-__all__ = ["SocialForceParams", "SFMNumerics", "with_overrides", "parse_param_overrides"]
+__all__ = ["SocialForceParams", "SFMNumerics", "with_overrides", "parse_param_overrides",
+           "TEXT_PARAMS", "BOOL_PARAMS"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -85,6 +86,7 @@ class SFMNumerics:
         if self.density_stages not in (1, 3):
             raise ParameterError(
                 f"parameter 'density_stages' must be 1 or 3, got {self.density_stages!r}")
+        object.__setattr__(self, "density_stages", int(self.density_stages))  # 3.0 -> 3
         for name in ("route_interval", "overlap_tolerance"):
             if getattr(self, name) < 0:
                 raise ParameterError(f"parameter '{name}' must be >= 0, "
@@ -102,11 +104,15 @@ def _check_positive(obj: Any) -> None:
 
 #: parameters whose values are words, not numbers
 TEXT_PARAMS = {"exit", "calibration"}
+#: switches: 0/1 or false/true on the command line (read as 0.0/1.0)
+BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction"}
+_BOOL_WORDS = {"0": 0.0, "1": 1.0, "false": 0.0, "true": 1.0}
 
 
 def parse_param_overrides(items: Iterable[str]) -> dict[str, float | str]:
     """``["A=1500", "exit=transmissive"]`` -> ``{"A": 1500.0, "exit": "transmissive"}``,
-    with clear errors."""
+    with clear errors: numbers must be finite; the switches in :data:`BOOL_PARAMS` take
+    0/1/false/true (read as 0.0/1.0)."""
     out: dict[str, float | str] = {}
     for item in items or []:
         if "=" not in item:
@@ -116,12 +122,24 @@ def parse_param_overrides(items: Iterable[str]) -> dict[str, float | str]:
         if name in TEXT_PARAMS:
             out[name] = value.strip()
             continue
+        if name in BOOL_PARAMS:
+            word = value.strip().lower()
+            try:  # 0, 1, 0.0, 1e0 ... as numbers
+                word = {0.0: "0", 1.0: "1"}.get(float(word), word)
+            except ValueError:
+                pass
+            if word not in _BOOL_WORDS:
+                raise ParameterError(f"parameter '{name}' must be 0 or 1 (or false/true), "
+                                     f"got '{value.strip()}'")
+            out[name] = _BOOL_WORDS[word]
+            continue
         try:
             out[name] = float(value)
         except ValueError:
             raise ParameterError(f"parameter '{name}': '{value}' is not a number") from None
         if not math.isfinite(out[name]):
-            raise ParameterError(f"parameter '{name}' must be a finite number, got {value.strip()}")
+            raise ParameterError(f"parameter '{name}' must be a finite number, "
+                                 f"got {value.strip()}")
     return out
 
 
