@@ -150,8 +150,13 @@ class MacroRun:
         return self.remaining < self.options.empty_below
 
     def step(self, t_limit: float = math.inf) -> None:
-        """One step, shortened to end exactly on ``t_limit`` [s] if it would pass it."""
-        self.controller.advance(t_limit if math.isfinite(t_limit) else None)
+        """One step that never passes ``t_limit`` [s] (the next time the driver records
+        something): it ends exactly on ``t_limit`` where the CFL step would pass it, and
+        one that would stop short of it by under a tenth of a step is halved so that no
+        sliver of a step follows (see :meth:`FVController.advance`; steps are only ever
+        shortened). ``math.inf`` (the default): the plain CFL step, bit for bit as before.
+        A ``t_limit`` that is NaN or not after :attr:`t` is a ValueError."""
+        self.controller.advance(None if t_limit == math.inf else t_limit)
         self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
         self._curve_t.append(self.state.t)
         self._curve_n.append(self.evacuated)

@@ -448,24 +448,38 @@ class FVController:
         self.retried = 0  #: steps taken again with a shorter dt (see :class:`StageTooLong`)
 
     def advance(self, t_stop: float | None = None) -> float:
-        """One step (no further than ``t_stop``); returns the step length [s].
+        """One step (no further than ``t_stop`` [s]); returns the step length [s].
 
-        A step that would pass ``t_stop`` is shortened to end on it exactly (``state.t ==
-        t_stop`` afterwards); one that would stop short of it by less than a tenth of a step
-        is halved, so that the next one lands on it without a sliver of a step. A step
-        whose stage outruns its forward-Euler bound is taken again with ``cfl`` times that
-        bound (and at most 0.9 of the rejected length); the state is only replaced by a
-        completed step."""
+        Without ``t_stop`` (or with ``math.inf``) the step is the CFL step, exactly as
+        before ``t_stop`` existed. With it the step is only ever shortened, never stretched:
+
+        * one that would pass ``t_stop`` ends on it exactly (``state.t == t_stop``
+          afterwards, even where ``t + (t_stop - t)`` would round off by an ulp);
+        * one that would stop short of it by less than a tenth of itself is replaced by half
+          the remaining time, so that the next step lands on ``t_stop`` and no sliver of a
+          step is taken (both halves are over 0.5 and under 0.55 of the CFL step).
+
+        A step whose stage outruns its forward-Euler bound is taken again with ``cfl`` times
+        that bound (and at most 0.9 of the rejected length), and then does not land; since
+        that is at most 0.9 of the time left, the gap it leaves is over a tenth of it. The
+        state is only replaced by a completed step.
+
+        Raises ValueError if ``t_stop`` is NaN or not after the current time."""
         s = self.solver
+        t0 = self.state.t
+        limited = t_stop is not None and t_stop != math.inf  # NaN is limited, and refused
+        if limited and not (float(t_stop) > t0):  # NaN fails too
+            raise ValueError(f"t_stop must be later than the current time {t0!r} s, "
+                             f"got {t_stop!r}")
         s.update_route(self.state.Q)
-        dt = s.max_dt(self.state.Q, self.state.t)
+        dt = s.max_dt(self.state.Q, t0)
         if not np.isfinite(dt) or dt <= 0:
             dt = 1e-2
         land = False
-        if t_stop is not None and math.isfinite(t_stop):
-            rest = t_stop - self.state.t
+        if limited:
+            rest = float(t_stop) - t0
             if rest <= dt:
-                dt, land = max(rest, 1e-12), True
+                dt, land = rest, True
             elif rest < 1.1 * dt:
                 dt = 0.5 * rest
         for _ in range(40):
