@@ -26,8 +26,9 @@ def add_mesh_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--exit-size", type=float, default=None, metavar="H",
                    help="grade the mesh to edges of about H m at the exits (default: uniform)")
     p.add_argument("--max-cells", type=float, default=None, metavar="N",
-                   help="refuse meshes estimated to have more than N triangles "
-                        "(default: 2000000; 'inf' for no limit)")
+                   help="stop with an error, before meshing, if the mesh would have more than "
+                        "N triangles (estimated as 1.6 x walkable area / max-area, or from "
+                        "the exit grading; default: 2000000; 'inf' for no limit)")
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
