@@ -98,8 +98,10 @@ class _Member:
 _ROOMS: dict = {}
 
 
-def _room_and_mesh(geometry: str, mesh_options: Mapping[str, Any]):
-    """The room and its mesh, built once per worker process and room file contents."""
+def _room_and_mesh(geometry: str, mesh_options: Mapping[str, Any],
+                   max_cells: float | None = None):
+    """The room and its mesh, built once per worker process and room file contents
+    (``max_cells``: the mesher's size limit, None for its default)."""
     from .io import load_room
     from .run.output import file_sha256
 
@@ -107,7 +109,7 @@ def _room_and_mesh(geometry: str, mesh_options: Mapping[str, Any]):
     if key not in _ROOMS:
         room = load_room(geometry)
         _ROOMS.clear()  # one room at a time is enough for an ensemble
-        _ROOMS[key] = (room, room.mesh(**dict(mesh_options)))
+        _ROOMS[key] = (room, room.mesh(**dict(mesh_options), max_cells=max_cells))
     return _ROOMS[key]
 
 
@@ -129,7 +131,8 @@ def run_member(task: Mapping[str, Any]) -> dict[str, Any]:
                            "seed": task["seed"], **task["values"],
                            "worker": _worker_address()}
     try:
-        room, mesh = _room_and_mesh(task["geometry"], task["mesh_options"])
+        room, mesh = _room_and_mesh(task["geometry"], task["mesh_options"],
+                                    task.get("max_cells"))
         s = run_model(room, mesh, task["model"], overrides=dict(task["overrides"]),
                       t_end=task["t_end"], out_dir=task["out_dir"], quiet=True,
                       geometry=task["geometry"], mesh_options=dict(task["mesh_options"]),
@@ -279,8 +282,8 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
              sweep: Mapping[str, Sequence[Any]] | None = None, seed: int = 0,
              client=None, scheduler: str | None = None, workers: int | None = None,
              t_end: float = 1000.0, max_area: float = 0.5, min_angle: float = 30.0,
-             exit_size: float | None = None, preset: str | None = None,
-             quiet: bool = False):
+             exit_size: float | None = None, max_cells: float | None = None,
+             preset: str | None = None, quiet: bool = False):
     """Run an ensemble (see module docstring) and return its members as a pandas
     DataFrame (the rows of ensemble.csv).
 
@@ -318,8 +321,9 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         raise EnsembleError(f"parameter '{both[0]}' is both set and swept")
     from .io import load_room
 
-    load_room(geometry)  # a bad room file fails here, once, not in every member
+    room = load_room(geometry)  # a bad room file fails here, once, not in every member
     mesh_options = {"max_area": max_area, "min_angle": min_angle, "exit_size": exit_size}
+    _check_mesh_size(room, mesh_options, max_cells)  # and so does an oversized mesh
     out = Path(out)
     plan = _plan(geometry, name, members, out, overrides=overrides, sweep=sweep, seed=seed,
                  t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=seeded)
@@ -360,7 +364,8 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
               "(skipped)", file=sys.stderr)
     if todo:
         _compute(todo, rows, plan, name, geometry, t_end, mesh_options, preset, seeded, out,
-                 frame, client=client, scheduler=scheduler, workers=workers, quiet=quiet)
+                 frame, client=client, scheduler=scheduler, workers=workers, quiet=quiet,
+                 max_cells=max_cells)
     result = frame()
     _write_csv(out / "ensemble.csv", result)
     _summaries(out, result, sweep, meta)
@@ -368,8 +373,27 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     return result
 
 
+def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | None) -> None:
+    """The mesher's size check, on the estimate, before any member is sent out."""
+    from .errors import MeshError
+    from .mesh.triangulate import MAX_CELLS, check_max_cells, estimate_cells, exit_size_field
+
+    check_max_cells(max_cells)
+    limit = MAX_CELLS if max_cells is None else max_cells
+    if not math.isfinite(limit) or not (mesh_options["max_area"] > 0):
+        return  # no limit, or a bad max_area that the mesher reports itself
+    fields = []
+    if mesh_options.get("exit_size") is not None and room.exits:
+        fields.append(exit_size_field(room, mesh_options["exit_size"]))
+    n = estimate_cells(room, mesh_options["max_area"], fields)
+    if n > limit:
+        raise MeshError(f"the members' mesh would have about {n:,.0f} triangles, more than "
+                        f"the limit of {limit:,.0f}; use a larger max_area, or raise the limit "
+                        "(--max-cells N)")
+
+
 def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, seeded, out,
-             frame, *, client, scheduler, workers, quiet) -> None:
+             frame, *, client, scheduler, workers, quiet, max_cells=None) -> None:
     """Submit the members in ``todo`` and record their rows as they finish."""
     try:
         from distributed import Client, LocalCluster, as_completed
@@ -399,7 +423,7 @@ def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, see
         tasks = [{"member": m.member, "point": m.point, "seed": m.seed, "values": m.values,
                   "geometry": str(Path(geometry).resolve()), "model": model,
                   "overrides": m.overrides, "t_end": t_end, "out_dir": str(m.out_dir.resolve()),
-                  "mesh_options": mesh_options, "preset": preset,
+                  "mesh_options": mesh_options, "preset": preset, "max_cells": max_cells,
                   "model_options": {"seed": m.seed} if seeded else {}} for m in todo]
         futures = [client.submit(run_member, t, key=f"pedmesh-{m.member}-{time.time_ns()}",
                                  pure=False) for m, t in zip(todo, tasks)]

@@ -167,7 +167,8 @@ def test_bad_options_are_one_line(geometries_dir, tmp_path, capsys):
                           (["--sweep", "dt"], "--sweep expects NAME=V1,V2"),
                           (["--model", "rdue", "--members", "3"], "no random input"),
                           (["--param", "dt=0.01", "--sweep", "dt=0.01,0.02"],
-                           "both set and swept")):
+                           "both set and swept"),
+                          (["--max-cells", "100"], "more than the limit of 100")):
         assert main(["ensemble", room, "--out", str(tmp_path / "x"), "-q", *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], (args, err)

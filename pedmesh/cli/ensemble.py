@@ -74,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
                       overrides=parse_param_overrides(args.param), sweep=parse_sweep(args.sweep),
                       seed=args.seed, scheduler=args.scheduler, workers=args.workers,
                       t_end=args.t_end, max_area=args.max_area, min_angle=args.min_angle,
-                      exit_size=args.exit_size, quiet=args.quiet)
+                      exit_size=args.exit_size, max_cells=args.max_cells,
+                      quiet=args.quiet)
     except KeyboardInterrupt:
         print(f"pedmesh: ensemble interrupted; finished members are kept in {out}",
               file=sys.stderr)
