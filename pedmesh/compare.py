@@ -68,15 +68,12 @@ def parse_model_specs(text: str | Sequence[str]) -> list[ModelSpec]:
 def _settings_difference(res: RunResult, wanted: dict) -> str | None:
     """Why the run ``res`` cannot stand for a run with settings ``wanted`` (None if it can):
     an unfinished run or any recorded setting that differs."""
-    status = res.status
-    if status not in ("finished", "stopped at t_end"):
-        return f"its status is '{status}'"
-    have = res.settings
-    if not have:
+    if not res.finished:
+        return f"its status is '{res.status}'"
+    if not res.settings:
         return "it records no settings (made by an older pedmesh)"
-    for k in sorted(set(have) | set(wanted)):
-        if have.get(k) != wanted.get(k):
-            return f"{k} differs ({have.get(k)!r} there, {wanted.get(k)!r} asked)"
+    for k, there, asked in res.settings_differences(wanted)[:1]:
+        return f"{k} differs ({there!r} there, {asked!r} asked)"
     return None
 
 

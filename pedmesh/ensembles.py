@@ -43,6 +43,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from .errors import ParameterError, PedmeshError
+from .run.results import FINISHED_STATUSES
 
 __all__ = ["ensemble", "EnsembleError", "member_seeds", "parse_sweep"]
 
@@ -186,11 +187,9 @@ def _existing(m: _Member) -> dict | None:
         raise EnsembleError(f"{d}: not a pedmesh run folder; move it away or choose another "
                             "--out")
     res = RunResult.load(d)
-    have = res.settings
-    if have != m.settings:
-        diff = sorted(k for k in set(have) | set(m.settings) if have.get(k) != m.settings.get(k))
-        what = ", ".join(f"{k} ({have.get(k)!r} there, {m.settings.get(k)!r} now)"
-                         for k in diff[:3])
+    diff = res.settings_differences(m.settings)
+    if diff:
+        what = ", ".join(f"{k} ({there!r} there, {now!r} now)" for k, there, now in diff[:3])
         raise EnsembleError(f"member {m.member}: {d} was made with other settings: {what}; "
                             "use another --out or delete it")
     if not res.finished:
@@ -210,21 +209,20 @@ def _stats(values: Sequence[float]) -> dict[str, float | None]:
 
 
 def _write_csv(path: Path, frame) -> None:
-    tmp = path.with_name(path.name + ".part")
-    frame.to_csv(tmp, index=False)
-    os.replace(tmp, path)
+    from .run.output import _atomic_write
+
+    _atomic_write(path, frame.to_csv(index=False))
 
 
 def _summaries(out: Path, frame, sweep: dict, meta: dict) -> dict:
     points = []
     for p, grp in frame.groupby("point", sort=True):
-        done = grp[grp["status"].isin(["finished", "stopped at t_end"])]
+        done = grp[grp["status"].isin(FINISHED_STATUSES)]
         entry = {"point": int(p), "values": {k: grp.iloc[0][k] for k in sweep},
                  "members": int(len(grp)), "finished": int(len(done)),
                  "failed": int((grp["status"] == "failed").sum())}
         for k in _TIMES:
-            entry[k] = _stats([None if (x is None or (isinstance(x, float) and math.isnan(x)))
-                               else float(x) for x in done[k]])
+            entry[k] = _stats(list(done[k]))
         points.append(entry)
     data = {**meta, "points": points}
     from .run.output import _atomic_write, _clean
@@ -244,7 +242,7 @@ def _bands(out: Path, frame, sweep: dict) -> Path | None:
     for p, grp in frame.groupby("point", sort=True):
         curves = []
         for mid, status in zip(grp["member"], grp["status"]):
-            if status not in ("finished", "stopped at t_end"):
+            if status not in FINISHED_STATUSES:
                 continue
             try:
                 curves.append(RunResult.load(out / "members" / mid).evacuation)

@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from ..ensembles import ensemble, parse_sweep
     from ..micro.params import parse_param_overrides
     from ..run import get_model
+    from ..run.results import FINISHED_STATUSES
 
     name, _ = get_model(args.model)
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-ensemble"
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         return 130
     finally:
         signal.signal(signal.SIGTERM, old)
-    done = df["status"].isin(["finished", "stopped at t_end"]).sum()
+    done = df["status"].isin(FINISHED_STATUSES).sum()
     failed = int((df["status"] == "failed").sum())
     print(f"{done} of {len(df)} members finished, {failed} failed; results in {out}")
     if failed:

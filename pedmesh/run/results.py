@@ -6,13 +6,17 @@ import json
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import PedmeshError
 from ..io.vtk import read_pvd_index
 
-__all__ = ["RunResult"]
+__all__ = ["RunResult", "FINISHED_STATUSES"]
+
+#: the statuses of a run that ran to its end (everyone out, or t_end reached)
+FINISHED_STATUSES = ("finished", "stopped at t_end")
 
 
 def _csv(path: Path) -> tuple[list[str], np.ndarray]:
@@ -51,13 +55,20 @@ class RunResult:
 
     @property
     def finished(self) -> bool:
-        return self.status in ("finished", "stopped at t_end")
+        return self.status in FINISHED_STATUSES
 
     @property
     def settings(self) -> dict:
         """What the run was asked to do (see :func:`pedmesh.run.driver.run_settings`);
         empty for runs written before settings were recorded."""
         return dict(self.summary.get("settings") or {})
+
+    def settings_differences(self, wanted: dict) -> list[tuple[str, Any, Any]]:
+        """(key, recorded, wanted) for every setting that differs from ``wanted``, in key
+        order; empty if they are all the same."""
+        have = self.settings
+        return [(k, have.get(k), wanted.get(k)) for k in sorted(set(have) | set(wanted))
+                if have.get(k) != wanted.get(k)]
 
     @cached_property
     def evacuation(self) -> tuple[np.ndarray, np.ndarray]:
