@@ -12,6 +12,17 @@ import numpy as np
 #: also keeps LLVM from vectorising; the kernels guard their divisions themselves), and
 #: ``contract`` lets multiply-adds become fused multiply-adds (one rounding instead of two)
 FAST = dict(cache=True, error_model="numpy", fastmath={"contract"})
+#: the same for kernels whose loops run on all cores (``numba.prange``). Every such loop
+#: writes only its own item (a cell or an edge) and reads what no iteration writes: sums
+#: over a cell's edges are gathered per cell (in increasing edge index, the order the
+#: serial scatter used), never scattered by edge, so there is no race and the result is
+#: bitwise the same with any number of threads
+PAR = dict(FAST, parallel=True)
+#: the parallel loops deal blocks of BLOCK items (cells or edges) out to NCHUNK chunks in
+#: turn: the occupied cells, where the work is, lie together in index order, and two
+#: contiguous halves would leave one core idle while the other does the crowd
+NCHUNK = 16
+BLOCK = 512
 
 
 @nb.njit(**FAST, inline="always")
@@ -23,41 +34,44 @@ def zhang_shu_theta(r, mn, rho_eps):
     return min(max(th, 0.0), 1.0)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut):
     """Zhang-Shu scaling of the density at the 6 edge points (rows ``slot[i, :]`` of ``Ve``
     (k, nv)) and the 3 interior points ``Vi`` (m, 3, nv) of every cell so that it is
     >= rho_eps (where the cell average allows), and first order for all variables in cells
     with an average density below ``rho_cut`` [ped/m^2]. In place."""
     m, _, nv = Vi.shape
-    for i in range(m):
-        r = qbar[i, 0]
-        if r < rho_cut:
-            for v in range(nv):
+    n_i = m
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                r = qbar[i, 0]
+                if r < rho_cut:
+                    for v in range(nv):
+                        for p in range(6):
+                            Ve[slot[i, p], v] = qbar[i, v]
+                        for p in range(3):
+                            Vi[i, p, v] = qbar[i, v]
+                    continue
+                mn = Vi[i, 0, 0]
+                for p in range(1, 3):
+                    mn = min(mn, Vi[i, p, 0])
                 for p in range(6):
-                    Ve[slot[i, p], v] = qbar[i, v]
-                for p in range(3):
-                    Vi[i, p, v] = qbar[i, v]
-            continue
-        mn = Vi[i, 0, 0]
-        for p in range(1, 3):
-            mn = min(mn, Vi[i, p, 0])
-        for p in range(6):
-            mn = min(mn, Ve[slot[i, p], 0])
-        if mn < rho_eps:
-            th = zhang_shu_theta(r, mn, rho_eps)
-            for p in range(6):
-                k = slot[i, p]
-                Ve[k, 0] = r + th * (Ve[k, 0] - r)
-            for p in range(3):
-                Vi[i, p, 0] = r + th * (Vi[i, p, 0] - r)
+                    mn = min(mn, Ve[slot[i, p], 0])
+                if mn < rho_eps:
+                    th = zhang_shu_theta(r, mn, rho_eps)
+                    for p in range(6):
+                        k = slot[i, p]
+                        Ve[k, 0] = r + th * (Ve[k, 0] - r)
+                    for p in range(3):
+                        Vi[i, p, 0] = r + th * (Vi[i, p, 0] - r)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def gather_cells(Q, e2t, edges, qL, qR):
     """First-order edge states: the cell averages on both sides (boundary: qR = qL), at
     each Gauss point of ``qL``/``qR`` (k, g, nv) (g = 1: one state per edge)."""
-    for a in range(edges.shape[0]):
+    for a in nb.prange(edges.shape[0]):
         e = edges[a]
         L = e2t[e, 0]
         R = e2t[e, 1]
@@ -69,12 +83,12 @@ def gather_cells(Q, e2t, edges, qL, qR):
                 qR[a, g, v] = Q[R, v]
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def integrate_edges(Fpts, lengths, edges, F):
     """Edge fluxes F[edges] = l_e/2 (F_g0 + F_g1) from point fluxes (k, 2, nv), or
     F[edges] = l_e F_g0 from one point flux per edge (k, 1, nv)."""
     two = Fpts.shape[1] == 2
-    for a in range(edges.shape[0]):
+    for a in nb.prange(edges.shape[0]):
         e = edges[a]
         for v in range(Fpts.shape[2]):
             if two:
@@ -83,45 +97,55 @@ def integrate_edges(Fpts, lengths, edges, F):
                 F[e, v] = lengths[e] * Fpts[a, 0, v]
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def edge_max(a, edges, out):
     """out[edges[k]] = max over the row a[k] (the wave speeds at an edge's points)."""
-    for k in range(edges.shape[0]):
+    for k in nb.prange(edges.shape[0]):
         v = a[k, 0]
         for g in range(1, a.shape[1]):
             v = max(v, a[k, g])
         out[edges[k]] = v
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def velocity_bounds(Q, nbr, rho_cut, lo, hi, active):
     """Per-cell bounds of each velocity component over the cell and its face neighbours
     (stage start), for the velocity limiter of pressureless transport. Cells with a
     near-vacuum neighbourhood get ``active = False``."""
     m = Q.shape[0]
-    for i in range(m):
-        active[i] = True
-        for d in range(2):
-            lo[i, d] = np.inf
-            hi[i, d] = -np.inf
-        for k in range(4):
-            j = i if k == 3 else nbr[i, k]
-            if j < 0:
-                continue
-            if Q[j, 0] < rho_cut:
-                active[i] = False
-                break
-            for d in range(2):
-                u = Q[j, 1 + d] / Q[j, 0]
-                if u < lo[i, d]:
-                    lo[i, d] = u
-                if u > hi[i, d]:
-                    hi[i, d] = u
+    n_i = m
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                active[i] = True
+                for d in range(2):
+                    lo[i, d] = np.inf
+                    hi[i, d] = -np.inf
+                for k in range(4):
+                    j = np.int64(i) if k == 3 else nbr[i, k]
+                    if j < 0:
+                        continue
+                    if Q[j, 0] < rho_cut:
+                        active[i] = False
+                        break
+                    for d in range(2):
+                        u = Q[j, 1 + d] / Q[j, 0]
+                        if u < lo[i, d]:
+                            lo[i, d] = u
+                        if u > hi[i, d]:
+                            hi[i, d] = u
 
 
-@nb.njit(**FAST)
-def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi, vactive,
-              UL, P, R_, dQ):
+def cell_edges(mesh) -> np.ndarray:
+    """(m, 3) the edges of every cell in increasing index: the order in which the gathering
+    kernels below sum a cell's edge terms (the order the former scatter loops over the
+    edges added them, so that the sums are bitwise those of the serial code)."""
+    return np.ascontiguousarray(np.sort(mesh.triangle_edges, axis=1)).astype(np.int64)
+
+
+@nb.njit(**PAR)
+def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi,
+              vactive, UL, P, R_, dQ):
     """Flux-corrected transport: F = FL + theta (FH - FL) per edge (all components), with
     theta chosen so that after a forward-Euler stage every cell keeps
 
@@ -133,131 +157,125 @@ def fct_blend(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vh
     >= 0``), so Zalesak's recipe applies: per cell and constraint the available margin of
     the low-order update over the decreases the antidiffusive fluxes would cause, and per
     edge the smallest factor of the cells it would decrease. ``FH``, ``FL`` (k, nv) are edge
-    fluxes integrated over the edges, oriented L -> R; ``inv_areas`` = 1/|T_i| [1/m^2].
-    ``UL`` (nv, m), ``P`` and ``R_`` (5, m) are work arrays. ``dQ`` (m, nv) receives the
-    divergence of F, as :func:`divergence` computes it (in the same pass).
+    fluxes integrated over the edges, oriented L -> R; ``t2e`` (m, 3) each cell's edges
+    (:func:`cell_edges`); ``inv_areas`` = 1/|T_i| [1/m^2]. ``UL`` (nv, m), ``P`` and ``R_``
+    (5, m) are work arrays. ``dQ`` (m, nv) receives the divergence of F, as
+    :func:`divergence` computes it. Three parallel passes: cells (margins), edges (factors
+    and blended fluxes), cells (divergence).
     """
     ne, nv = FH.shape
     m = inv_areas.shape[0]
     nc = 5 if (use_vel and nv == 3) else 1
     if nc == 1:
-        _fct_density(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, UL[0], P[0], R_[0], dQ)
+        _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL[0], P[0],
+                     R_[0], dQ)
         return
-    for i in range(m):
-        for v in range(nv):
-            UL[v, i] = Q[i, v]
-        for c in range(nc):
-            P[c, i] = 0.0
-    # one pass over the edges: the low-order update, and per cell and constraint c (g = a . U
-    # with a given by (c, i)) the decreases the antidiffusive fluxes would cause
-    for e in range(ne):
-        L = e2t[e, 0]
-        R = e2t[e, 1]
-        for v in range(nv):
-            f = FL[e, v] * dt
-            UL[v, L] -= f * inv_areas[L]
-            if R >= 0:
-                UL[v, R] += f * inv_areas[R]
-        for side in range(2):
-            i = e2t[e, side]
-            if i < 0:
-                continue
-            sgn = 1.0 if side == 0 else -1.0  # flux out of i is +sgn F
-            for c in range(nc):
-                if c > 0 and not vactive[i]:
-                    continue
-                da = _constraint_dot(c, i, FH, FL, e, vlo, vhi)
-                dec = sgn * da * dt * inv_areas[i]  # decrease of g_i
-                if dec > 0.0:
-                    P[c, i] += dec
-    for i in range(m):
-        for c in range(nc):
-            R_[c, i] = 1.0
-            if P[c, i] > 0.0:
-                if c == 0:
-                    g = UL[0, i] - rho_eps
-                else:
-                    d = (c - 1) // 2
-                    if (c - 1) % 2 == 0:
-                        g = UL[1 + d, i] - vlo[i, d] * UL[0, i]
-                    else:
-                        g = vhi[i, d] * UL[0, i] - UL[1 + d, i]
-                if g < 0.0:
-                    g = 0.0
-                R_[c, i] = min(1.0, g / P[c, i])
-    for i in range(m):
-        for v in range(nv):
-            dQ[i, v] = 0.0
-    for e in range(ne):
-        th = 1.0
-        for side in range(2):
-            i = e2t[e, side]
-            if i < 0:
-                continue
-            sgn = 1.0 if side == 0 else -1.0
-            for c in range(nc):
-                if c > 0 and not vactive[i]:
-                    continue
-                if sgn * _constraint_dot(c, i, FH, FL, e, vlo, vhi) > 0.0 and R_[c, i] < th:
-                    th = R_[c, i]
-        theta[e] = th
-        _blend_edge(e, e2t[e, 0], e2t[e, 1], th, FH, FL, F, inv_areas, dQ)
+    # per cell: the low-order update, and per constraint c (g = a . U with a given by
+    # (c, i)) the decreases the antidiffusive fluxes would cause, then the factor R_
+    n_i = m
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                for v in range(nv):
+                    UL[v, i] = Q[i, v]
+                for c in range(nc):
+                    P[c, i] = 0.0
+                for k in range(3):
+                    e = t2e[i, k]
+                    sgn = 1.0 if e2t[e, 0] == i else -1.0  # flux out of i is +sgn F
+                    for v in range(nv):
+                        UL[v, i] -= sgn * (FL[e, v] * dt) * inv_areas[i]
+                    for c in range(nc):
+                        if c > 0 and not vactive[i]:
+                            continue
+                        da = _constraint_dot(c, i, FH, FL, e, vlo, vhi)
+                        dec = sgn * da * dt * inv_areas[i]  # decrease of g_i
+                        if dec > 0.0:
+                            P[c, i] += dec
+                for c in range(nc):
+                    R_[c, i] = 1.0
+                    if P[c, i] > 0.0:
+                        if c == 0:
+                            g = UL[0, i] - rho_eps
+                        else:
+                            d = (c - 1) // 2
+                            if (c - 1) % 2 == 0:
+                                g = UL[1 + d, i] - vlo[i, d] * UL[0, i]
+                            else:
+                                g = vhi[i, d] * UL[0, i] - UL[1 + d, i]
+                        if g < 0.0:
+                            g = 0.0
+                        R_[c, i] = min(1.0, g / P[c, i])
+    n_e = ne
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_e) + BLOCK - 1) // BLOCK, NCHUNK):
+            for e in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
+                th = 1.0
+                for side in range(2):
+                    i = e2t[e, side]
+                    if i < 0:
+                        continue
+                    sgn = 1.0 if side == 0 else -1.0
+                    for c in range(nc):
+                        if c > 0 and not vactive[i]:
+                            continue
+                        if sgn * _constraint_dot(c, i, FH, FL, e, vlo, vhi) > 0.0 and R_[c, i] < th:
+                            th = R_[c, i]
+                theta[e] = th
+                for v in range(nv):
+                    F[e, v] = FL[e, v] + th * (FH[e, v] - FL[e, v])
+    _gather_divergence(F, e2t, t2e, inv_areas, dQ)
 
 
-@nb.njit(**FAST)
-def _fct_density(FH, FL, e2t, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R_, dQ):
+@nb.njit(**PAR)
+def _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R_, dQ):
     """:func:`fct_blend` with the density constraint alone (the common case), its loops
     over constraints and sides written out."""
     ne, nv = FH.shape
     m = inv_areas.shape[0]
-    for i in range(m):
-        UL[i] = Q[i, 0]
-        P[i] = 0.0
-    for e in range(ne):
-        L = e2t[e, 0]
-        R = e2t[e, 1]
-        f = FL[e, 0] * dt
-        d = (FH[e, 0] - FL[e, 0]) * dt  # > 0: the correction takes density from L, < 0: from R
-        UL[L] -= f * inv_areas[L]
-        if d > 0.0:
-            P[L] += d * inv_areas[L]
-        if R >= 0:
-            UL[R] += f * inv_areas[R]
-            if d < 0.0:
-                P[R] -= d * inv_areas[R]
-    for i in range(m):
-        r = 1.0
-        if P[i] > 0.0:
-            g = UL[i] - rho_eps
-            if g < 0.0:
-                g = 0.0
-            r = min(1.0, g / P[i])
-        R_[i] = r
-        for v in range(nv):
-            dQ[i, v] = 0.0
-    for e in range(ne):
-        L = e2t[e, 0]
-        R = e2t[e, 1]
-        d = FH[e, 0] - FL[e, 0]
-        th = 1.0
-        if d > 0.0:
-            th = R_[L]
-        elif d < 0.0 and R >= 0:
-            th = R_[R]
-        theta[e] = th
-        _blend_edge(e, L, R, th, FH, FL, F, inv_areas, dQ)
-
-
-@nb.njit(**FAST, inline="always")
-def _blend_edge(e, L, R, th, FH, FL, F, inv_areas, dQ):
-    """F[e] = FL[e] + th (FH[e] - FL[e]), and its divergence into dQ of cells L and R (R < 0:
-    a boundary edge)."""
-    for v in range(F.shape[1]):
-        f = FL[e, v] + th * (FH[e, v] - FL[e, v])
-        F[e, v] = f
-        dQ[L, v] -= f * inv_areas[L]
-        if R >= 0:
-            dQ[R, v] += f * inv_areas[R]
+    n_i = m
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                ul = Q[i, 0]
+                pi = 0.0
+                for k in range(3):
+                    e = t2e[i, k]
+                    f = FL[e, 0] * dt
+                    d = (FH[e, 0] - FL[e, 0]) * dt  # > 0: the correction takes density from L
+                    if e2t[e, 0] == i:
+                        ul -= f * inv_areas[i]
+                        if d > 0.0:
+                            pi += d * inv_areas[i]
+                    else:
+                        ul += f * inv_areas[i]
+                        if d < 0.0:
+                            pi -= d * inv_areas[i]
+                UL[i] = ul
+                P[i] = pi
+                r = 1.0
+                if pi > 0.0:
+                    g = ul - rho_eps
+                    if g < 0.0:
+                        g = 0.0
+                    r = min(1.0, g / pi)
+                R_[i] = r
+    n_e = ne
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_e) + BLOCK - 1) // BLOCK, NCHUNK):
+            for e in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
+                L = e2t[e, 0]
+                R = e2t[e, 1]
+                d = FH[e, 0] - FL[e, 0]
+                th = 1.0
+                if d > 0.0:
+                    th = R_[L]
+                elif d < 0.0 and R >= 0:
+                    th = R_[R]
+                theta[e] = th
+                for v in range(nv):
+                    F[e, v] = FL[e, v] + th * (FH[e, v] - FL[e, v])
+    _gather_divergence(F, e2t, t2e, inv_areas, dQ)
 
 
 @nb.njit(**FAST, inline="always")
@@ -273,48 +291,59 @@ def _constraint_dot(c, i, FH, FL, e, vlo, vhi):
     return vhi[i, d] * ar - am
 
 
-@nb.njit(**FAST)
-def divergence(F, e2t, inv_areas, out):
-    """out_i = -(1/|T_i|) sum over its edges of the outward edge flux (F oriented L -> R);
-    ``inv_areas`` = 1/|T_i|."""
+@nb.njit(**PAR)
+def _gather_divergence(F, e2t, t2e, inv_areas, out):
     m, nv = out.shape
-    for i in range(m):
-        for v in range(nv):
-            out[i, v] = 0.0
-    for e in range(F.shape[0]):
-        L = e2t[e, 0]
-        R = e2t[e, 1]
-        for v in range(nv):
-            out[L, v] -= F[e, v] * inv_areas[L]
-            if R >= 0:
-                out[R, v] += F[e, v] * inv_areas[R]
+    n_i = m
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                for v in range(nv):
+                    out[i, v] = 0.0
+                for k in range(3):
+                    e = t2e[i, k]
+                    if e2t[e, 0] == i:
+                        for v in range(nv):
+                            out[i, v] -= F[e, v] * inv_areas[i]
+                    else:
+                        for v in range(nv):
+                            out[i, v] += F[e, v] * inv_areas[i]
 
 
 @nb.njit(**FAST)
-def cfl_dt(alpha_edge, lengths, e2t, areas, cfl):
+def divergence(F, e2t, t2e, inv_areas, out):
+    """out_i = -(1/|T_i|) sum over its edges ``t2e[i]`` of the outward edge flux (F oriented
+    L -> R); ``inv_areas`` = 1/|T_i|."""
+    _gather_divergence(F, e2t, t2e, inv_areas, out)
+
+
+@nb.njit(**PAR)
+def cfl_dt(alpha_edge, lengths, e2t, t2e, areas, cfl):
     """dt = cfl * min_i 2|T_i| / sum_e l_e alpha_e (the positivity bound of first-order
-    Rusanov is cfl = 1)."""
+    Rusanov is cfl = 1); ``t2e`` (m, 3) each cell's edges (:func:`cell_edges`)."""
     m = areas.shape[0]
-    s = np.zeros(m)
-    for e in range(alpha_edge.shape[0]):
-        w = lengths[e] * alpha_edge[e]
-        s[e2t[e, 0]] += w
-        if e2t[e, 1] >= 0:
-            s[e2t[e, 1]] += w
+    d = np.empty(m)
+    n_i = m
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                s = 0.0
+                for k in range(3):
+                    e = t2e[i, k]
+                    s += lengths[e] * alpha_edge[e]
+                d[i] = 2.0 * areas[i] / s if s > 0.0 else np.inf
     best = np.inf
     for i in range(m):
-        if s[i] > 0.0:
-            d = 2.0 * areas[i] / s[i]
-            if d < best:
-                best = d
+        if d[i] < best:
+            best = d[i]
     return cfl * best
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def add_point_mean(S, dQ):
     """dQ[i] += mean of the source at the 3 interior points of cell i (S is (3 m, nv))."""
     m, nv = dQ.shape
-    for i in range(m):
+    for i in nb.prange(m):
         for v in range(nv):
             dQ[i, v] += (S[3 * i, v] + S[3 * i + 1, v] + S[3 * i + 2, v]) / 3.0
 

@@ -260,11 +260,11 @@ def _row_dot2(ptr, idx, dx, dy, rho, i):
     return fx, fy
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)  # (rows in parallel; no FMA: scipy's exact sums)
 def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, out):
     """out_i = rho_i (sum_j W_ij rho_j [+ sum_j I_ij rho_j]) for both components, with Wx,
     Wy (and Ix, Iy) sharing one CSR pattern each (sums in CSR order, like scipy's)."""
-    for i in range(rho.shape[0]):
+    for i in nb.prange(rho.shape[0]):
         fx, fy = _row_dot2(ptr, idx, dx, dy, rho, i)
         if walls:
             gx, gy = _row_dot2(iptr, iidx, ix, iy, rho, i)
@@ -274,11 +274,11 @@ def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, out):
         out[i, 1] = rho[i] * fy
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, out):
     """out_i = rho_i (K m)_i - (K rho)_i m_i with the 2x2 blocks K_ij = [[kxx, kxy], [kxy,
     kyy]] on one CSR pattern (see :meth:`PairOperators.friction`)."""
-    for i in range(rho.shape[0]):
+    for i in nb.prange(rho.shape[0]):
         rxx = 0.0
         rxy = 0.0
         ryy = 0.0

@@ -37,7 +37,7 @@ import numba as nb
 import numpy as np
 
 from ..mesh.trimesh import TriMesh
-from ._kernels import FAST, positivity_limit, zhang_shu_theta
+from ._kernels import BLOCK, FAST, NCHUNK, PAR, positivity_limit, zhang_shu_theta
 
 __all__ = ["ReconstructionData", "build_reconstruction", "reconstruct", "GAUSS_S", "D0"]
 
@@ -330,7 +330,7 @@ def _flat(qbar, i, stencil, pairs, npair):
     return True
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
                 eps_hat, qref, point_xy, out_edge, slot, out_int):
     """Point values of the reconstruction of cell averages ``qbar`` (m, nv): the value at
@@ -344,71 +344,86 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
     basis is evaluated once per point for all variables.
     """
     m, nv = qbar.shape
+    # blocks of cells dealt out in turn to the threads (see _kernels.BLOCK), each chunk
+    # with its own work arrays
+    nblock = (m + BLOCK - 1) // BLOCK
+    for c in nb.prange(NCHUNK):
+        q0 = np.zeros(nv)
+        coef = np.zeros((nv, 5))
+        for b in range(c, nblock, NCHUNK):
+            for i in range(b * BLOCK, min(m, (b + 1) * BLOCK)):
+                _reconstruct_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs,
+                                  pair_inv, n_pairs, h, eps_hat, qref, point_xy, out_edge, slot,
+                                  out_int, q0, coef)
+
+
+@nb.njit(**FAST)
+def _reconstruct_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
+                      n_pairs, h, eps_hat, qref, point_xy, out_edge, slot, out_int, q0, coef):
+    """:func:`reconstruct` of cell ``i`` (``q0`` (nv,) and ``coef`` (nv, 5) work arrays)."""
+    nv = qbar.shape[1]
     S = stencil.shape[1]
-    q0 = np.zeros(nv)
-    coef = np.zeros((nv, 5))
     inv_d0 = 1.0 / D0
-    for i in range(m):
-        deg = opt_degree[i] if order >= 2 else 0
-        npair = n_pairs[i]
+    deg = opt_degree[i] if order >= 2 else 0
+    npair = n_pairs[i]
+    for v in range(nv):
+        q0[v] = qbar[i, v]
+    if deg > 0 and npair > 0 and _flat(qbar, i, stencil, pairs, npair):
+        deg = 0  # constant data around the cell (e.g. the empty parts of a room)
+    if deg == 0 or npair == 0:
+        # first order (or no sector polynomials to detect oscillations)
         for v in range(nv):
-            q0[v] = qbar[i, v]
-        if deg > 0 and npair > 0 and _flat(qbar, i, stencil, pairs, npair):
-            deg = 0  # constant data around the cell (e.g. the empty parts of a room)
-        if deg == 0 or npair == 0:
-            # first order (or no sector polynomials to detect oscillations)
-            for v in range(nv):
-                for p in range(6):
-                    out_edge[slot[i, p], v] = q0[v]
-                for p in range(3):
-                    out_int[i, p, v] = q0[v]
-            continue
-        mxx = moments[i, 0]
-        mxy = moments[i, 1]
-        myy = moments[i, 2]
-        dk = (1.0 - D0) / npair
+            for p in range(6):
+                out_edge[slot[i, p], v] = q0[v]
+            for p in range(3):
+                out_int[i, p, v] = q0[v]
+        return
+    mxx = moments[i, 0]
+    mxy = moments[i, 1]
+    myy = moments[i, 2]
+    dk = (1.0 - D0) / npair
+    for v in range(nv):
+        p0 = p1 = p2 = p3 = p4 = 0.0
+        for s in range(S):
+            j = stencil[i, s]
+            if j < 0:
+                break
+            d = qbar[j, v] - q0[v]
+            p0 += R[i, s, 0] * d
+            p1 += R[i, s, 1] * d
+            p2 += R[i, s, 2] * d
+            p3 += R[i, s, 3] * d
+            p4 += R[i, s, 4] * d
+        if order == 2:
+            p2 = p3 = p4 = 0.0
+        eps = (eps_hat * qref[v] * h[i]) ** 2 + 1e-300
+        w0 = _w(_beta2(p0, p1, p2, p3, p4, mxx, mxy, myy), eps, D0)
+        t = w0
+        # sum_k w_k lin_k (s.) and sum_k lin_k (u.) of the sector gradients
+        sx = sy = ux = uy = 0.0
+        for kp in range(npair):
+            lx, ly, w = _sector(qbar, pairs[i, kp, 0], pairs[i, kp, 1], v, q0[v],
+                                pair_inv[i, kp, 0, 0], pair_inv[i, kp, 0, 1],
+                                pair_inv[i, kp, 1, 0], pair_inv[i, kp, 1, 1], eps, dk)
+            t, sx, sy, ux, uy = t + w, sx + w * lx, sy + w * ly, ux + lx, uy + ly
+        # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
+        it = 1.0 / t
+        f0 = w0 * it * inv_d0
+        k0 = f0 * dk
+        coef[v, 0] = f0 * p0 + sx * it - k0 * ux
+        coef[v, 1] = f0 * p1 + sy * it - k0 * uy
+        coef[v, 2] = f0 * p2
+        coef[v, 3] = f0 * p3
+        coef[v, 4] = f0 * p4
+    for p in range(9):
+        x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
         for v in range(nv):
-            p0 = p1 = p2 = p3 = p4 = 0.0
-            for s in range(S):
-                j = stencil[i, s]
-                if j < 0:
-                    break
-                d = qbar[j, v] - q0[v]
-                p0 += R[i, s, 0] * d
-                p1 += R[i, s, 1] * d
-                p2 += R[i, s, 2] * d
-                p3 += R[i, s, 3] * d
-                p4 += R[i, s, 4] * d
-            if order == 2:
-                p2 = p3 = p4 = 0.0
-            eps = (eps_hat * qref[v] * h[i]) ** 2 + 1e-300
-            w0 = _w(_beta2(p0, p1, p2, p3, p4, mxx, mxy, myy), eps, D0)
-            t = w0
-            # sum_k w_k lin_k (s.) and sum_k lin_k (u.) of the sector gradients
-            sx = sy = ux = uy = 0.0
-            for kp in range(npair):
-                lx, ly, w = _sector(qbar, pairs[i, kp, 0], pairs[i, kp, 1], v, q0[v],
-                                    pair_inv[i, kp, 0, 0], pair_inv[i, kp, 0, 1],
-                                    pair_inv[i, kp, 1, 0], pair_inv[i, kp, 1, 1], eps, dk)
-                t, sx, sy, ux, uy = t + w, sx + w * lx, sy + w * ly, ux + lx, uy + ly
-            # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
-            it = 1.0 / t
-            f0 = w0 * it * inv_d0
-            k0 = f0 * dk
-            coef[v, 0] = f0 * p0 + sx * it - k0 * ux
-            coef[v, 1] = f0 * p1 + sy * it - k0 * uy
-            coef[v, 2] = f0 * p2
-            coef[v, 3] = f0 * p3
-            coef[v, 4] = f0 * p4
-        for p in range(9):
-            x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
-            for v in range(nv):
-                val = (q0[v] + coef[v, 0] * x + coef[v, 1] * y + coef[v, 2] * bxx
-                       + coef[v, 3] * bxy + coef[v, 4] * byy)
-                if p < 6:
-                    out_edge[slot[i, p], v] = val
-                else:
-                    out_int[i, p - 6, v] = val
+            val = (q0[v] + coef[v, 0] * x + coef[v, 1] * y + coef[v, 2] * bxx
+                   + coef[v, 3] * bxy + coef[v, 4] * byy)
+            if p < 6:
+                out_edge[slot[i, p], v] = val
+            else:
+                out_int[i, p - 6, v] = val
 
 
 @nb.njit(**FAST, inline="always")
@@ -429,7 +444,7 @@ def _sector(qbar, pa, pb, v, q0, g00, g01, g10, g11, eps, dk):
     return lx, ly, _w(lx * lx + ly * ly, eps, dk)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
                   eps_hat, qref, point_xy, out_edge, slot, out_int, limit, rho_eps, rho_cut):
     """:func:`reconstruct` for exactly 3 variables (density and momentum), each quantity held
@@ -440,141 +455,155 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
     deviations scaled so that it is >= ``rho_eps`` at every point where the average
     allows)."""
     m = qbar.shape[0]
+    # blocks of cells dealt out in turn to the threads (see _kernels.BLOCK)
+    nblock = (m + BLOCK - 1) // BLOCK
+    for c in nb.prange(NCHUNK):
+        for b in range(c, nblock, NCHUNK):
+            for i in range(b * BLOCK, min(m, (b + 1) * BLOCK)):
+                _reconstruct3_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs,
+                                   pair_inv, n_pairs, h, eps_hat, qref, point_xy, out_edge,
+                                   slot, out_int, limit, rho_eps, rho_cut)
+
+
+@nb.njit(**FAST, inline="always")
+def _reconstruct3_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
+                       n_pairs, h, eps_hat, qref, point_xy, out_edge, slot, out_int, limit,
+                       rho_eps, rho_cut):
+    """:func:`_reconstruct3` of cell ``i``."""
     S = stencil.shape[1]
     inv_d0 = 1.0 / D0
-    for i in range(m):
-        deg = opt_degree[i] if order >= 2 else 0
-        npair = n_pairs[i]
-        qa = qbar[i, 0]
-        qb = qbar[i, 1]
-        qc = qbar[i, 2]
-        if limit and qa < rho_cut:
+    deg = opt_degree[i] if order >= 2 else 0
+    npair = n_pairs[i]
+    qa = qbar[i, 0]
+    qb = qbar[i, 1]
+    qc = qbar[i, 2]
+    if limit and qa < rho_cut:
+        deg = 0
+    if deg > 0 and npair > 0:
+        j = stencil[i, 0]  # (a quick look at one neighbour rejects most cells)
+        if (qbar[j, 0] == qa and qbar[j, 1] == qb and qbar[j, 2] == qc
+                and _flat(qbar, i, stencil, pairs, npair)):
             deg = 0
-        if deg > 0 and npair > 0:
-            j = stencil[i, 0]  # (a quick look at one neighbour rejects most cells)
-            if (qbar[j, 0] == qa and qbar[j, 1] == qb and qbar[j, 2] == qc
-                    and _flat(qbar, i, stencil, pairs, npair)):
-                deg = 0
-        if deg == 0 or npair == 0:
-            for p in range(6):
-                k = slot[i, p]
-                out_edge[k, 0] = qa
-                out_edge[k, 1] = qb
-                out_edge[k, 2] = qc
-            for p in range(3):
-                out_int[i, p, 0] = qa
-                out_int[i, p, 1] = qb
-                out_int[i, p, 2] = qc
-            continue
-        mxx = moments[i, 0]
-        mxy = moments[i, 1]
-        myy = moments[i, 2]
-        dk = (1.0 - D0) / npair
-        a0 = a1 = a2 = a3 = a4 = 0.0
-        b0 = b1 = b2 = b3 = b4 = 0.0
-        c0 = c1 = c2 = c3 = c4 = 0.0
-        for s in range(S):
-            j = stencil[i, s]
-            if j < 0:
-                break
-            da = qbar[j, 0] - qa
-            db = qbar[j, 1] - qb
-            dc = qbar[j, 2] - qc
-            r0 = R[i, s, 0]
-            r1 = R[i, s, 1]
-            r2 = R[i, s, 2]
-            r3 = R[i, s, 3]
-            r4 = R[i, s, 4]
-            a0 += r0 * da
-            a1 += r1 * da
-            a2 += r2 * da
-            a3 += r3 * da
-            a4 += r4 * da
-            b0 += r0 * db
-            b1 += r1 * db
-            b2 += r2 * db
-            b3 += r3 * db
-            b4 += r4 * db
-            c0 += r0 * dc
-            c1 += r1 * dc
-            c2 += r2 * dc
-            c3 += r3 * dc
-            c4 += r4 * dc
-        if order == 2:
-            a2 = a3 = a4 = b2 = b3 = b4 = c2 = c3 = c4 = 0.0
-        hh = h[i] * eps_hat
-        ea = (hh * qref[0]) ** 2 + 1e-300
-        eb = (hh * qref[1]) ** 2 + 1e-300
-        ec = (hh * qref[2]) ** 2 + 1e-300
-        wa0 = _w(_beta2(a0, a1, a2, a3, a4, mxx, mxy, myy), ea, D0)
-        wb0 = _w(_beta2(b0, b1, b2, b3, b4, mxx, mxy, myy), eb, D0)
-        wc0 = _w(_beta2(c0, c1, c2, c3, c4, mxx, mxy, myy), ec, D0)
-        ta = wa0
-        tb = wb0
-        tc = wc0
-        # per variable: sum_k w_k lin_k (s..) and sum_k lin_k (u..) of the sector gradients
-        sax = say = sbx = sby = scx = scy = 0.0
-        uax = uay = ubx = uby = ucx = ucy = 0.0
-        for kp in range(npair):
-            pa = pairs[i, kp, 0]
-            pb = pairs[i, kp, 1]
-            g00 = pair_inv[i, kp, 0, 0]
-            g01 = pair_inv[i, kp, 0, 1]
-            g10 = pair_inv[i, kp, 1, 0]
-            g11 = pair_inv[i, kp, 1, 1]
-            lx, ly, w = _sector(qbar, pa, pb, 0, qa, g00, g01, g10, g11, ea, dk)
-            ta, sax, say, uax, uay = ta + w, sax + w * lx, say + w * ly, uax + lx, uay + ly
-            lx, ly, w = _sector(qbar, pa, pb, 1, qb, g00, g01, g10, g11, eb, dk)
-            tb, sbx, sby, ubx, uby = tb + w, sbx + w * lx, sby + w * ly, ubx + lx, uby + ly
-            lx, ly, w = _sector(qbar, pa, pb, 2, qc, g00, g01, g10, g11, ec, dk)
-            tc, scx, scy, ucx, ucy = tc + w, scx + w * lx, scy + w * ly, ucx + lx, ucy + ly
-        # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
-        ia = 1.0 / ta
-        ib = 1.0 / tb
-        ic = 1.0 / tc
-        fa = wa0 * ia * inv_d0
-        fb = wb0 * ib * inv_d0
-        fc = wc0 * ic * inv_d0
-        ka = fa * dk
-        kb = fb * dk
-        kc = fc * dk
-        A0 = fa * a0 + sax * ia - ka * uax
-        A1 = fa * a1 + say * ia - ka * uay
-        B0 = fb * b0 + sbx * ib - kb * ubx
-        B1 = fb * b1 + sby * ib - kb * uby
-        C0 = fc * c0 + scx * ic - kc * ucx
-        C1 = fc * c1 + scy * ic - kc * ucy
-        A2 = fa * a2
-        A3 = fa * a3
-        A4 = fa * a4
-        B2 = fb * b2
-        B3 = fb * b3
-        B4 = fb * b4
-        C2 = fc * c2
-        C3 = fc * c3
-        C4 = fc * c4
-        mn = qa  # the density's smallest point value
+    if deg == 0 or npair == 0:
+        for p in range(6):
+            k = slot[i, p]
+            out_edge[k, 0] = qa
+            out_edge[k, 1] = qb
+            out_edge[k, 2] = qc
+        for p in range(3):
+            out_int[i, p, 0] = qa
+            out_int[i, p, 1] = qb
+            out_int[i, p, 2] = qc
+        return
+    mxx = moments[i, 0]
+    mxy = moments[i, 1]
+    myy = moments[i, 2]
+    dk = (1.0 - D0) / npair
+    a0 = a1 = a2 = a3 = a4 = 0.0
+    b0 = b1 = b2 = b3 = b4 = 0.0
+    c0 = c1 = c2 = c3 = c4 = 0.0
+    for s in range(S):
+        j = stencil[i, s]
+        if j < 0:
+            break
+        da = qbar[j, 0] - qa
+        db = qbar[j, 1] - qb
+        dc = qbar[j, 2] - qc
+        r0 = R[i, s, 0]
+        r1 = R[i, s, 1]
+        r2 = R[i, s, 2]
+        r3 = R[i, s, 3]
+        r4 = R[i, s, 4]
+        a0 += r0 * da
+        a1 += r1 * da
+        a2 += r2 * da
+        a3 += r3 * da
+        a4 += r4 * da
+        b0 += r0 * db
+        b1 += r1 * db
+        b2 += r2 * db
+        b3 += r3 * db
+        b4 += r4 * db
+        c0 += r0 * dc
+        c1 += r1 * dc
+        c2 += r2 * dc
+        c3 += r3 * dc
+        c4 += r4 * dc
+    if order == 2:
+        a2 = a3 = a4 = b2 = b3 = b4 = c2 = c3 = c4 = 0.0
+    hh = h[i] * eps_hat
+    ea = (hh * qref[0]) ** 2 + 1e-300
+    eb = (hh * qref[1]) ** 2 + 1e-300
+    ec = (hh * qref[2]) ** 2 + 1e-300
+    wa0 = _w(_beta2(a0, a1, a2, a3, a4, mxx, mxy, myy), ea, D0)
+    wb0 = _w(_beta2(b0, b1, b2, b3, b4, mxx, mxy, myy), eb, D0)
+    wc0 = _w(_beta2(c0, c1, c2, c3, c4, mxx, mxy, myy), ec, D0)
+    ta = wa0
+    tb = wb0
+    tc = wc0
+    # per variable: sum_k w_k lin_k (s..) and sum_k lin_k (u..) of the sector gradients
+    sax = say = sbx = sby = scx = scy = 0.0
+    uax = uay = ubx = uby = ucx = ucy = 0.0
+    for kp in range(npair):
+        pa = pairs[i, kp, 0]
+        pb = pairs[i, kp, 1]
+        g00 = pair_inv[i, kp, 0, 0]
+        g01 = pair_inv[i, kp, 0, 1]
+        g10 = pair_inv[i, kp, 1, 0]
+        g11 = pair_inv[i, kp, 1, 1]
+        lx, ly, w = _sector(qbar, pa, pb, 0, qa, g00, g01, g10, g11, ea, dk)
+        ta, sax, say, uax, uay = ta + w, sax + w * lx, say + w * ly, uax + lx, uay + ly
+        lx, ly, w = _sector(qbar, pa, pb, 1, qb, g00, g01, g10, g11, eb, dk)
+        tb, sbx, sby, ubx, uby = tb + w, sbx + w * lx, sby + w * ly, ubx + lx, uby + ly
+        lx, ly, w = _sector(qbar, pa, pb, 2, qc, g00, g01, g10, g11, ec, dk)
+        tc, scx, scy, ucx, ucy = tc + w, scx + w * lx, scy + w * ly, ucx + lx, ucy + ly
+    # p = w0 (P_opt - dk sum_k P_k) / d0 + sum_k w_k P_k, the weights normalised by t
+    ia = 1.0 / ta
+    ib = 1.0 / tb
+    ic = 1.0 / tc
+    fa = wa0 * ia * inv_d0
+    fb = wb0 * ib * inv_d0
+    fc = wc0 * ic * inv_d0
+    ka = fa * dk
+    kb = fb * dk
+    kc = fc * dk
+    A0 = fa * a0 + sax * ia - ka * uax
+    A1 = fa * a1 + say * ia - ka * uay
+    B0 = fb * b0 + sbx * ib - kb * ubx
+    B1 = fb * b1 + sby * ib - kb * uby
+    C0 = fc * c0 + scx * ic - kc * ucx
+    C1 = fc * c1 + scy * ic - kc * ucy
+    A2 = fa * a2
+    A3 = fa * a3
+    A4 = fa * a4
+    B2 = fb * b2
+    B3 = fb * b3
+    B4 = fb * b4
+    C2 = fc * c2
+    C3 = fc * c3
+    C4 = fc * c4
+    mn = qa  # the density's smallest point value
+    for p in range(9):
+        x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
+        va = qa + A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy
+        mn = min(mn, va)
+        vb = qb + B0 * x + B1 * y + B2 * bxx + B3 * bxy + B4 * byy
+        vc = qc + C0 * x + C1 * y + C2 * bxx + C3 * bxy + C4 * byy
+        if p < 6:
+            k = slot[i, p]
+            out_edge[k, 0] = va
+            out_edge[k, 1] = vb
+            out_edge[k, 2] = vc
+        else:
+            out_int[i, p - 6, 0] = va
+            out_int[i, p - 6, 1] = vb
+            out_int[i, p - 6, 2] = vc
+    if limit and mn < rho_eps:  # Zhang-Shu: scale the density's deviations (rare)
+        th = zhang_shu_theta(qa, mn, rho_eps)
         for p in range(9):
             x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
-            va = qa + A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy
-            mn = min(mn, va)
-            vb = qb + B0 * x + B1 * y + B2 * bxx + B3 * bxy + B4 * byy
-            vc = qc + C0 * x + C1 * y + C2 * bxx + C3 * bxy + C4 * byy
+            va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
             if p < 6:
-                k = slot[i, p]
-                out_edge[k, 0] = va
-                out_edge[k, 1] = vb
-                out_edge[k, 2] = vc
+                out_edge[slot[i, p], 0] = va
             else:
                 out_int[i, p - 6, 0] = va
-                out_int[i, p - 6, 1] = vb
-                out_int[i, p - 6, 2] = vc
-        if limit and mn < rho_eps:  # Zhang-Shu: scale the density's deviations (rare)
-            th = zhang_shu_theta(qa, mn, rho_eps)
-            for p in range(9):
-                x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
-                va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
-                if p < 6:
-                    out_edge[slot[i, p], 0] = va
-                else:
-                    out_int[i, p - 6, 0] = va

@@ -140,6 +140,7 @@ class FVSolver:
         self.boundary_state = boundary_state
         e2t = mesh.edge_triangles
         self.e2t = e2t
+        self.t2e = K.cell_edges(mesh)  # (m, 3) each cell's edges, for the gathering kernels
         self.kind = mesh.edge_kind
         self.interior = np.flatnonzero(e2t[:, 1] >= 0)
         self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL)
@@ -349,17 +350,17 @@ class FVSolver:
             # the flux limiter keeps rho >= 0 only if the first-order stage does: dt within
             # the forward-Euler bound of this stage's wave speeds (which can exceed those of
             # the step start, from which the step was sized)
-            dt_fe = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, 1.0)
+            dt_fe = K.cfl_dt(alpha, self.lengths, self.e2t, self.t2e, self.areas, 1.0)
             if dt > dt_fe:
                 raise StageTooLong(dt_fe)
             use_vel = bool(getattr(model, "pressureless", False)) and nv == 3
             if use_vel:
                 K.velocity_bounds(Q, self.mesh.triangle_neighbors, model_rho_cut(model),
                                   self._vlo, self._vhi, self._vact)
-            K.fct_blend(FH, FL, self.e2t, self.inv_areas, Q, dt, opt.rho_eps, F, self._theta,
-                        use_vel, self._vlo, self._vhi, self._vact, *self._fct_work, dQ)
+            K.fct_blend(FH, FL, self.e2t, self.t2e, self.inv_areas, Q, dt, opt.rho_eps, F,
+                        self._theta, use_vel, self._vlo, self._vhi, self._vact, *self._fct_work, dQ)
         else:
-            K.divergence(F, self.e2t, self.inv_areas, dQ)
+            K.divergence(F, self.e2t, self.t2e, self.inv_areas, dQ)
         if model.source_mean is not None:
             model.source_mean(Vi, self._e_int_x, self._e_int_y, dQ)
         else:
@@ -382,7 +383,7 @@ class FVSolver:
         floor = float(getattr(self.model, "speed_floor", 0.0))
         if floor > 0:
             np.maximum(alpha, floor, out=alpha)
-        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.areas, self.cfl)
+        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.t2e, self.areas, self.cfl)
         return min(dt, self.model.source_dt(Q))
 
     def step(self, state: FVState, dt: float) -> None:

@@ -272,20 +272,20 @@ def test_density_flux_limiter_equals_the_general_one():
     s.residual(Q, 0.0, 1e-3)
     s._fluxes(0.0, s._Fb)
     s._low_order(Q, 0.0, s._FL, s._alpha)
-    dt = K.cfl_dt(s._alpha, s.lengths, s.e2t, s.areas, 0.9)
+    dt = K.cfl_dt(s._alpha, s.lengths, s.e2t, s.t2e, s.areas, 0.9)
     m = mesh.n_triangles
     out = []
     for use_vel in (False, True):
         F, th, dQ = np.empty_like(s._Fb), np.empty(mesh.n_edges), np.empty_like(Q)
         work = (np.empty((3, m)), np.empty((5, m)), np.empty((5, m)))
-        K.fct_blend(s._Fb, s._FL, s.e2t, s.inv_areas, Q, dt, 0.0, F, th, use_vel, s._vlo,
+        K.fct_blend(s._Fb, s._FL, s.e2t, s.t2e, s.inv_areas, Q, dt, 0.0, F, th, use_vel, s._vlo,
                     s._vhi, np.zeros(m, np.bool_), *work, dQ)
         out.append((F, th, dQ))
     assert 0 < np.mean(out[0][1] < 1) < 0.9  # the limiter acts on some edges
     for a, b in zip(out[0], out[1]):
         np.testing.assert_array_equal(a, b)
     div = np.empty_like(Q)
-    K.divergence(out[0][0], s.e2t, s.inv_areas, div)
+    K.divergence(out[0][0], s.e2t, s.t2e, s.inv_areas, div)
     np.testing.assert_allclose(out[0][2], div, rtol=0, atol=1e-13 * np.abs(div).max())
 
 

@@ -26,7 +26,7 @@ import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
-from .._kernels import FAST
+from .._kernels import BLOCK, FAST, NCHUNK, PAR
 from .base import MacroModel, register_macro_model
 
 __all__ = ["BarotropicModel", "PressureLaw", "PayneWhitham"]
@@ -148,9 +148,9 @@ def _p_c(kind, prm, rho):
     return p, math.sqrt(max(dp, 0.0))
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def _p_c_vec(kind, prm, rho, p, c):
-    for i in range(rho.shape[0]):
+    for i in nb.prange(rho.shape[0]):
         p[i], c[i] = _p_c(kind, prm, rho[i])
 
 
@@ -198,58 +198,66 @@ def _rusanov_point(qL, qR, nx, ny, kind, prm, rho_cut, umax):
     return f0, f1, f2, a
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def rusanov(qL, qR, nx, ny, kind, prm, rho_cut, umax, F, alpha):
     """Rusanov flux of the barotropic system at k points (states (k, 3))."""
-    for k in range(qL.shape[0]):
+    for k in nb.prange(qL.shape[0]):
         F[k, 0], F[k, 1], F[k, 2], alpha[k] = _rusanov_point(qL[k], qR[k], nx[k], ny[k], kind,
                                                              prm, rho_cut, umax)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def rusanov_edges(qL, qR, nx, ny, kind, prm, rho_cut, umax, edges, lengths, F):
     """Rusanov fluxes at the 2 Gauss points of each of ``edges`` (states (k, 2, 3), unit
     normals (k,)), integrated over the edge into ``F[e]`` (the 2-point Gauss rule)."""
-    for a in range(edges.shape[0]):
-        e = edges[a]
-        f0, f1, f2, _ = _rusanov_point(qL[a, 0], qR[a, 0], nx[a], ny[a], kind, prm, rho_cut, umax)
-        g0, g1, g2, _ = _rusanov_point(qL[a, 1], qR[a, 1], nx[a], ny[a], kind, prm, rho_cut, umax)
-        w = 0.5 * lengths[e]
-        F[e, 0] = w * (f0 + g0)
-        F[e, 1] = w * (f1 + g1)
-        F[e, 2] = w * (f2 + g2)
+    n_a = edges.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_a) + BLOCK - 1) // BLOCK, NCHUNK):
+            for a in range(b_ * BLOCK, min(n_a, (b_ + 1) * BLOCK)):
+                e = edges[a]
+                f0, f1, f2, _ = _rusanov_point(qL[a, 0], qR[a, 0], nx[a], ny[a], kind, prm,
+                                               rho_cut, umax)
+                g0, g1, g2, _ = _rusanov_point(qL[a, 1], qR[a, 1], nx[a], ny[a], kind, prm,
+                                               rho_cut, umax)
+                w = 0.5 * lengths[e]
+                F[e, 0] = w * (f0 + g0)
+                F[e, 1] = w * (f1 + g1)
+                F[e, 2] = w * (f2 + g2)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, alpha):
     """First-order Rusanov fluxes between the two cells of each of ``edges`` (interior),
     integrated over the edge (``F[e] = l_e f``), and the wave speeds ``alpha[e]``: the cell
     states are read in place instead of being gathered first."""
-    for k in range(edges.shape[0]):
-        e = edges[k]
-        f0, f1, f2, a = _rusanov_point(Q[e2t[e, 0]], Q[e2t[e, 1]], nx[k], ny[k], kind, prm,
-                                       rho_cut, umax)
-        w = lengths[e]
-        F[e, 0] = w * f0
-        F[e, 1] = w * f1
-        F[e, 2] = w * f2
-        alpha[e] = a
+    n_k = edges.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_k) + BLOCK - 1) // BLOCK, NCHUNK):
+            for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
+                e = edges[k]
+                f0, f1, f2, a = _rusanov_point(Q[e2t[e, 0]], Q[e2t[e, 1]], nx[k], ny[k], kind, prm,
+                                               rho_cut, umax)
+                w = lengths[e]
+                F[e, 0] = w * f0
+                F[e, 1] = w * f1
+                F[e, 2] = w * f2
+                alpha[e] = a
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def mirror(q, nx, ny, out):
     """Mirror states: same density, normal velocity reversed."""
-    for k in range(q.shape[0]):
+    for k in nb.prange(q.shape[0]):
         mn = q[k, 1] * nx[k] + q[k, 2] * ny[k]
         out[k, 0] = q[k, 0]
         out[k, 1] = q[k, 1] - 2.0 * mn * nx[k]
         out[k, 2] = q[k, 2] - 2.0 * mn * ny[k]
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def transmissive(q, nx, ny, kind, prm, rho_cut, umax, F):
     """Physical flux of the interior state with u.n clipped to >= 0 (no re-entry)."""
-    for k in range(q.shape[0]):
+    for k in nb.prange(q.shape[0]):
         r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
         un = ux * nx[k] + uy * ny[k]
         if un < 0.0:
@@ -287,63 +295,66 @@ def _h(kind, prm, rho, h_rho, h_val):
     return h_val[lo] * (1 - w) + h_val[hi] * w
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
     """Exact Godunov flux of the Riemann problem between each state and vacuum (empty space
     beyond an exit), for a barotropic pressure: the left-moving rarefaction ends in vacuum,
     and the flux is that of the state at x/t = 0 -- the left state if it is supersonic
     outwards, vacuum if the whole fan moves inwards, else the sonic state where u = c(rho),
     found through the Riemann invariant u + h(rho) = u_L + h(rho_L)."""
-    for k in range(q.shape[0]):
-        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
-        F[k, 0] = 0.0
-        F[k, 1] = 0.0
-        F[k, 2] = 0.0
-        if r <= 0.0:
-            continue
-        n0, n1 = nx[k], ny[k]
-        un = ux * n0 + uy * n1
-        tx = ux - un * n0
-        ty = uy - un * n1
-        p, c = _p_c(kind, prm, r)
-        if c == 0.0 or un - c >= 0.0:  # pressureless, or supersonic outflow
-            if un <= 0.0:
-                continue
-            rs, us, ps = r, un, p
-        else:
-            if kind == ISOTHERMAL:
-                if un >= prm[0]:
-                    rs, us = r, un
+    n_k = q.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_k) + BLOCK - 1) // BLOCK, NCHUNK):
+            for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
+                r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+                F[k, 0] = 0.0
+                F[k, 1] = 0.0
+                F[k, 2] = 0.0
+                if r <= 0.0:
+                    continue
+                n0, n1 = nx[k], ny[k]
+                un = ux * n0 + uy * n1
+                tx = ux - un * n0
+                ty = uy - un * n1
+                p, c = _p_c(kind, prm, r)
+                if c == 0.0 or un - c >= 0.0:  # pressureless, or supersonic outflow
+                    if un <= 0.0:
+                        continue
+                    rs, us, ps = r, un, p
                 else:
-                    rs = r * math.exp(un / prm[0] - 1.0)
-                    us = prm[0]
-            elif kind == QUADRATIC:
-                cs = (un + 2.0 * c) / 3.0
-                if cs <= 0.0:
-                    continue
-                rs = cs * cs / prm[0]
-                us = cs
-            else:
-                target = un + _h(kind, prm, r, h_rho, h_val)
-                lo = 0.0
-                hi = r
-                if target <= 0.0:
-                    continue
-                for _ in range(60):
-                    mid = 0.5 * (lo + hi)
-                    _, cm = _p_c(kind, prm, mid)
-                    g = (_h(kind, prm, mid, h_rho, h_val) if mid > 0 else 0.0) + cm - target
-                    if g > 0.0:
-                        hi = mid
+                    if kind == ISOTHERMAL:
+                        if un >= prm[0]:
+                            rs, us = r, un
+                        else:
+                            rs = r * math.exp(un / prm[0] - 1.0)
+                            us = prm[0]
+                    elif kind == QUADRATIC:
+                        cs = (un + 2.0 * c) / 3.0
+                        if cs <= 0.0:
+                            continue
+                        rs = cs * cs / prm[0]
+                        us = cs
                     else:
-                        lo = mid
-                rs = 0.5 * (lo + hi)
-                _, us = _p_c(kind, prm, rs)
-            ps, _ = _p_c(kind, prm, rs)
-        m = rs * us
-        F[k, 0] = m
-        F[k, 1] = m * (us * n0 + tx) + ps * n0
-        F[k, 2] = m * (us * n1 + ty) + ps * n1
+                        target = un + _h(kind, prm, r, h_rho, h_val)
+                        lo = 0.0
+                        hi = r
+                        if target <= 0.0:
+                            continue
+                        for _ in range(60):
+                            mid = 0.5 * (lo + hi)
+                            _, cm = _p_c(kind, prm, mid)
+                            g = (_h(kind, prm, mid, h_rho, h_val) if mid > 0 else 0.0) + cm - target
+                            if g > 0.0:
+                                hi = mid
+                            else:
+                                lo = mid
+                        rs = 0.5 * (lo + hi)
+                        _, us = _p_c(kind, prm, rs)
+                    ps, _ = _p_c(kind, prm, rs)
+                m = rs * us
+                F[k, 0] = m
+                F[k, 1] = m * (us * n0 + tx) + ps * n0
+                F[k, 2] = m * (us * n1 + ty) + ps * n1
 
 
 @nb.njit(**FAST, inline="always")
@@ -354,35 +365,38 @@ def _relax_point(q, ex, ey, U_f, beta, rho_cut, umax):
     return r * (ue * ex - ux), r * (ue * ey - uy)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def relaxation(q, ex, ey, U_f, beta, tau, rho_cut, umax, S):
     """rho (U_e(rho) e - u)/tau at k points."""
-    for k in range(q.shape[0]):
+    for k in nb.prange(q.shape[0]):
         s1, s2 = _relax_point(q[k], ex[k], ey[k], U_f, beta, rho_cut, umax)
         S[k, 0] = 0.0
         S[k, 1] = s1 / tau
         S[k, 2] = s2 / tau
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ):
     """dQ[i] += the mean of the relaxation at the 3 interior points of cell i (states
     ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,))."""
     c = 1.0 / (3.0 * tau)
-    for i in range(dQ.shape[0]):
-        s1 = s2 = 0.0
-        for p in range(3):
-            a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, beta, rho_cut,
-                                  umax)
-            s1 += a1
-            s2 += a2
-        dQ[i, 1] += c * s1
-        dQ[i, 2] += c * s2
+    n_i = dQ.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                s1 = s2 = 0.0
+                for p in range(3):
+                    a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, beta,
+                                          rho_cut, umax)
+                    s1 += a1
+                    s2 += a2
+                dQ[i, 1] += c * s1
+                dQ[i, 2] += c * s2
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def velocities(q, rho_cut, umax, out):
-    for k in range(q.shape[0]):
+    for k in nb.prange(q.shape[0]):
         r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
         out[k, 0] = ux
         out[k, 1] = uy

@@ -17,7 +17,7 @@ import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
-from .._kernels import FAST
+from .._kernels import BLOCK, FAST, NCHUNK, PAR
 from .base import MacroModel, register_macro_model
 
 __all__ = ["RDUE"]
@@ -39,44 +39,50 @@ def _rusanov_en(rl, fl, dl, rr, fr, dr, en):
     return 0.5 * (fl + fr) * en - 0.5 * a * (rr - rl), a
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def _rusanov(qL, qR, en, U_f, beta, F, alpha):
-    for k in range(qL.shape[0]):
+    for k in nb.prange(qL.shape[0]):
         rl, fl, dl = _f_df(qL[k, 0], U_f, beta)
         rr, fr, dr = _f_df(qR[k, 0], U_f, beta)
         F[k, 0], alpha[k] = _rusanov_en(rl, fl, dl, rr, fr, dr, en[k])
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, U_f, beta, F):
     """Rusanov fluxes at the 2 Gauss points of each of ``edges`` (states (k, 2, 1), unit
     normals (k,), directions (2 k,)), integrated over the edge into ``F[e]``."""
-    for a in range(edges.shape[0]):
-        e = edges[a]
-        s = 0.0
-        for g in range(2):
-            rl, fl, dl = _f_df(qL[a, g, 0], U_f, beta)
-            rr, fr, dr = _f_df(qR[a, g, 0], U_f, beta)
-            en = ex[2 * a + g] * nx[a] + ey[2 * a + g] * ny[a]
-            f, _ = _rusanov_en(rl, fl, dl, rr, fr, dr, en)
-            s += f
-        F[e, 0] = 0.5 * lengths[e] * s
+    n_a = edges.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_a) + BLOCK - 1) // BLOCK, NCHUNK):
+            for a in range(b_ * BLOCK, min(n_a, (b_ + 1) * BLOCK)):
+                e = edges[a]
+                s = 0.0
+                for g in range(2):
+                    rl, fl, dl = _f_df(qL[a, g, 0], U_f, beta)
+                    rr, fr, dr = _f_df(qR[a, g, 0], U_f, beta)
+                    en = ex[2 * a + g] * nx[a] + ey[2 * a + g] * ny[a]
+                    f, _ = _rusanov_en(rl, fl, dl, rr, fr, dr, en)
+                    s += f
+                F[e, 0] = 0.5 * lengths[e] * s
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, U_f, beta, F, alpha):
     """First-order fluxes of interior ``edges`` from their two cells' averages (read in
     place; f and f' once per edge, the direction at both Gauss points), integrated over the
     edge into ``F[e]``, and the larger wave speed of the two points into ``alpha[e]``."""
-    for a in range(edges.shape[0]):
-        e = edges[a]
-        rl, fl, dl = _f_df(Q[e2t[e, 0], 0], U_f, beta)
-        rr, fr, dr = _f_df(Q[e2t[e, 1], 0], U_f, beta)
-        f0, a0 = _rusanov_en(rl, fl, dl, rr, fr, dr, ex[2 * a] * nx[a] + ey[2 * a] * ny[a])
-        f1, a1 = _rusanov_en(rl, fl, dl, rr, fr, dr,
-                             ex[2 * a + 1] * nx[a] + ey[2 * a + 1] * ny[a])
-        F[e, 0] = 0.5 * lengths[e] * (f0 + f1)
-        alpha[e] = max(a0, a1)
+    n_a = edges.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_a) + BLOCK - 1) // BLOCK, NCHUNK):
+            for a in range(b_ * BLOCK, min(n_a, (b_ + 1) * BLOCK)):
+                e = edges[a]
+                rl, fl, dl = _f_df(Q[e2t[e, 0], 0], U_f, beta)
+                rr, fr, dr = _f_df(Q[e2t[e, 1], 0], U_f, beta)
+                f0, a0 = _rusanov_en(rl, fl, dl, rr, fr, dr, ex[2 * a] * nx[a] + ey[2 * a] * ny[a])
+                f1, a1 = _rusanov_en(rl, fl, dl, rr, fr, dr,
+                                     ex[2 * a + 1] * nx[a] + ey[2 * a + 1] * ny[a])
+                F[e, 0] = 0.5 * lengths[e] * (f0 + f1)
+                alpha[e] = max(a0, a1)
 
 
 class RDUE(MacroModel):
