@@ -124,8 +124,15 @@ def _worker_address() -> str:
 
 
 def run_member(task: Mapping[str, Any]) -> dict[str, Any]:
-    """Run one member (on a worker) and return its row; never raises for a failed run."""
+    """Run one member (on a worker) and return its row; never raises for a failed run.
+    The member's compiled kernels run on one thread: the workers already keep the cores
+    busy, and threads that wait for each other on a busy machine are far slower than one
+    (see :data:`pedmesh.macro.solver.PARALLEL_MIN_CELLS`)."""
+    import numba
+
     from .run import run_model
+
+    numba.set_num_threads(1)
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {"member": task["member"], "point": task["point"],

@@ -78,7 +78,7 @@ def test_steps_land_exactly_on_each_target(room_mesh, model):
 def _old_advance(c):
     """The controller's step before t_limit existed (a copy of the old code path)."""
     s = c.solver
-    s.update_route(c.state.Q)
+    s.update_route(c.state.Q, c.state.t)  # (the time: for route_interval)
     dt = s.max_dt(c.state.Q, c.state.t)
     if not np.isfinite(dt) or dt <= 0:
         dt = 1e-2

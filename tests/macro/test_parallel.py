@@ -24,19 +24,15 @@ def hall():
 
 
 def _run(room, mesh, name, threads, steps=12):
-    before = numba.get_num_threads()
-    numba.set_num_threads(threads)
-    try:
-        _, factory = get_model(name)
-        run = factory(room, mesh, {})
-        n0 = run.n_initial
-        out = []
-        for _ in range(steps):
-            run.step()
-            out.append(run.state.Q.copy())
-        return run, n0, out
-    finally:
-        numba.set_num_threads(before)
+    _, factory = get_model(name)
+    run = factory(room, mesh, {"threads": threads})  # (this small mesh would get 1 thread)
+    assert run.solver.threads == threads
+    n0 = run.n_initial
+    out = []
+    for _ in range(steps):
+        run.step()
+        out.append(run.state.Q.copy())
+    return run, n0, out
 
 
 @pytest.mark.parametrize("name", MODELS)
@@ -51,3 +47,25 @@ def test_one_and_two_threads_give_the_same_bits(hall, name):
     assert two[-1][:, 0].min() >= 0.0
     assert run.controller.mass_error < 1e-12
     assert run.evacuated + run.remaining == pytest.approx(n0, rel=1e-12)
+
+
+def test_thread_policy(hall):
+    """One thread below PARALLEL_MIN_CELLS cells (no gain there, and a large loss on a busy
+    machine), numba's thread count above; an explicit count is taken as given; the caller's
+    numba thread setting is restored after each step."""
+    from pedmesh.errors import ParameterError
+    from pedmesh.macro.solver import PARALLEL_MIN_CELLS, FVOptions, _threads
+
+    room, mesh = hall
+    assert mesh.n_triangles < PARALLEL_MIN_CELLS
+    assert _threads(None, mesh.n_triangles) == 1
+    assert _threads(None, PARALLEL_MIN_CELLS) == numba.get_num_threads()
+    assert _threads(1, 10**6) == 1
+    _, factory = get_model("eos")
+    run = factory(room, mesh, {"threads": 2})
+    before = numba.get_num_threads()
+    run.step()
+    assert numba.get_num_threads() == before
+    for bad in (0, 1.5, -2, True):
+        with pytest.raises(ParameterError, match="threads"):
+            FVOptions(threads=bad)
