@@ -9,8 +9,9 @@
   non-negative after every stage (provided the stage is within the forward-Euler bound of
   its first-order fluxes, which each stage checks), the model's sources at 3 interior
   points, and Shu-Osher SSP-RK3. The desired direction is re-solved from the current
-  density at the start of each step (cost ``1/U_e(rho)``, cell densities averaged to the
-  vertices) and frozen across the three stages (an O(dt) splitting, like the paper's).
+  density (cost ``1/U_e(rho)``, cell densities averaged to the vertices) at the start of
+  a step once ``route_interval`` (0.5 s) has passed since the last solve, and frozen in
+  between (an O(dt) splitting every step, like the paper's, with ``route_interval=0``).
   A model's stiff source (``has_split_source``, e.g. mac1's friction) is applied by Strang
   splitting: half a step of it alone before the SSP-RK3 step and half a step after.
 * :class:`FVController` decides *when*: the CFL time step (a step refused by a stage is
