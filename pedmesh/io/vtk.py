@@ -1,5 +1,6 @@
-"""VTK output that ParaView opens: ``.vtu`` meshes (meshio), ``.vtp`` point clouds
-(pyvista) and ``.pvd`` time-series collections.
+"""VTK output that ParaView opens: ``.vtu`` meshes (meshio; the frames of a time series
+through VTK's own writer, LZ4-compressed), ``.vtp`` point clouds (pyvista) and ``.pvd``
+time-series collections.
 
 2-D vector fields, shape (n, 2), are written with a zero third component so that ParaView
 can draw them as glyphs. pyvista reads PVD but does not write it, so the small PVD writer
@@ -82,6 +83,44 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
     return path
 
 
+def _grid(mesh):
+    """A pyvista UnstructuredGrid of the mesh's triangles (z = 0)."""
+    import pyvista as pv
+
+    pts = np.column_stack([mesh.points, np.zeros(mesh.n_points)])
+    return pv.UnstructuredGrid({pv.CellType.TRIANGLE: np.asarray(mesh.triangles)}, pts)
+
+
+def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayMap) -> Path:
+    """Write ``grid`` with these fields (replacing the previous frame's) to ``path`` with
+    VTK's XML writer: appended raw data, LZ4-compressed."""
+    from vtkmodules.vtkIOCore import vtkLZ4DataCompressor
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
+
+    grid.point_data.clear()
+    grid.cell_data.clear()
+    for k, v in (point_data or {}).items():
+        if len(v) != mesh.n_points:
+            raise ValueError(f"point field '{k}' has {len(v)} values for {mesh.n_points} vertices")
+        grid.point_data[k] = _pad3(np.asarray(v))
+    for k, v in (cell_data or {}).items():
+        if len(v) != mesh.n_triangles:
+            raise ValueError(f"cell field '{k}' has {len(v)} values for {mesh.n_triangles} "
+                             "triangles")
+        grid.cell_data[k] = _pad3(np.asarray(v))
+    tmp = path.with_name(path.stem + ".part.vtu")
+    w = vtkXMLUnstructuredGridWriter()
+    w.SetFileName(str(tmp))
+    w.SetInputData(grid)
+    w.SetDataModeToAppended()
+    w.EncodeAppendedDataOff()
+    w.SetCompressor(vtkLZ4DataCompressor())
+    if not w.Write():
+        raise OSError(f"could not write {path}")
+    os.replace(tmp, path)
+    return path
+
+
 def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None) -> Path:
     """Write a 2-D point cloud [m] with per-point fields to a ``.vtp`` file (pyvista)."""
     import pyvista as pv
@@ -129,6 +168,7 @@ class PVDWriter:
         self.dir = self.path.with_suffix("")
         self.dir.mkdir(parents=True, exist_ok=True)
         self.entries: list[tuple[float, str]] = []
+        self._grid = self._grid_mesh = None  # the VTK grid of the frames' mesh
         self._write_index()
 
     def __enter__(self) -> "PVDWriter":
@@ -146,8 +186,13 @@ class PVDWriter:
 
     def write_mesh(self, t: float, mesh, point_data: ArrayMap = None,
                    cell_data: ArrayMap = None) -> Path:
-        """Add a mesh frame at time ``t`` [s]."""
-        p = write_vtu(self._frame_path(".vtu"), mesh, point_data, cell_data)
+        """Add a mesh frame at time ``t`` [s]: a ``.vtu`` written by VTK's own XML writer
+        from a grid kept for the mesh (only the fields change between frames), its arrays
+        LZ4-compressed (ParaView reads it; ten times faster to write than meshio's zlib,
+        files about as large)."""
+        if self._grid is None or self._grid_mesh is not mesh:
+            self._grid, self._grid_mesh = _grid(mesh), mesh
+        p = _write_frame(self._frame_path(".vtu"), self._grid, mesh, point_data, cell_data)
         return self.add_file(t, p)
 
     def write_points(self, t: float, points: np.ndarray, point_data: ArrayMap = None) -> Path:

@@ -102,20 +102,20 @@ class RunResult:
     def density_at(self, t: float, mesh) -> tuple[float, np.ndarray, np.ndarray]:
         """(frame time, cell density [ped/m^2], cell velocity [m/s]) of the frame nearest
         to ``t``. Vertex fields (particle models) are averaged to the cells."""
-        import meshio
+        import pyvista as pv
 
         frames = self.density_frames
         if not frames:
             raise PedmeshError(f"{self.path}: no density frames")
         k = int(np.argmin([abs(ft - t) for ft, _ in frames]))
         ft, f = frames[k]
-        m = meshio.read(f)
+        m = pv.read(f)
         if "rho" in m.cell_data:
-            rho = np.asarray(m.cell_data["rho"][0])
-            vel = np.asarray(m.cell_data["velocity"][0])[:, :2]
+            rho = np.asarray(m.cell_data["rho"])
+            vel = np.asarray(m.cell_data["velocity"])[:, :2]
         else:
             tri = mesh.triangles
             rho = np.asarray(m.point_data["density"])[tri].mean(axis=1)
-            v = m.point_data.get("velocity")
+            v = m.point_data["velocity"] if "velocity" in m.point_data else None
             vel = np.zeros((len(tri), 2)) if v is None else np.asarray(v)[:, :2][tri].mean(axis=1)
         return ft, rho, vel
