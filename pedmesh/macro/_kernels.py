@@ -35,16 +35,18 @@ def zhang_shu_theta(r, mn, rho_eps):
 
 
 @nb.njit(**PAR)
-def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut):
+def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut, cact):
     """Zhang-Shu scaling of the density at the 6 edge points (rows ``slot[i, :]`` of ``Ve``
-    (k, nv)) and the 3 interior points ``Vi`` (m, 3, nv) of every cell so that it is
-    >= rho_eps (where the cell average allows), and first order for all variables in cells
-    with an average density below ``rho_cut`` [ped/m^2]. In place."""
+    (k, nv)) and the 3 interior points ``Vi`` (m, 3, nv) of every active cell (``cact``) so
+    that it is >= rho_eps (where the cell average allows), and first order for all
+    variables in cells with an average density below ``rho_cut`` [ped/m^2]. In place."""
     m, _, nv = Vi.shape
     n_i = m
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
                 r = qbar[i, 0]
                 if r < rho_cut:
                     for v in range(nv):
@@ -68,11 +70,14 @@ def positivity_limit(Ve, slot, Vi, qbar, rho_eps, rho_cut):
 
 
 @nb.njit(**PAR)
-def gather_cells(Q, e2t, edges, qL, qR):
+def gather_cells(Q, e2t, edges, qL, qR, live):
     """First-order edge states: the cell averages on both sides (boundary: qR = qL), at
-    each Gauss point of ``qL``/``qR`` (k, g, nv) (g = 1: one state per edge)."""
+    each Gauss point of ``qL``/``qR`` (k, g, nv) (g = 1: one state per edge), of the live
+    edges (``live`` (n_edges,))."""
     for a in nb.prange(edges.shape[0]):
         e = edges[a]
+        if not live[e]:
+            continue
         L = e2t[e, 0]
         R = e2t[e, 1]
         if R < 0:
@@ -84,12 +89,17 @@ def gather_cells(Q, e2t, edges, qL, qR):
 
 
 @nb.njit(**PAR)
-def integrate_edges(Fpts, lengths, edges, F):
+def integrate_edges(Fpts, lengths, edges, F, live):
     """Edge fluxes F[edges] = l_e/2 (F_g0 + F_g1) from point fluxes (k, 2, nv), or
-    F[edges] = l_e F_g0 from one point flux per edge (k, 1, nv)."""
+    F[edges] = l_e F_g0 from one point flux per edge (k, 1, nv); 0 on edges that are not
+    ``live``."""
     two = Fpts.shape[1] == 2
     for a in nb.prange(edges.shape[0]):
         e = edges[a]
+        if not live[e]:
+            for v in range(Fpts.shape[2]):
+                F[e, v] = 0.0
+            continue
         for v in range(Fpts.shape[2]):
             if two:
                 F[e, v] = 0.5 * lengths[e] * (Fpts[a, 0, v] + Fpts[a, 1, v])
@@ -98,9 +108,13 @@ def integrate_edges(Fpts, lengths, edges, F):
 
 
 @nb.njit(**PAR)
-def edge_max(a, edges, out):
-    """out[edges[k]] = max over the row a[k] (the wave speeds at an edge's points)."""
+def edge_max(a, edges, out, live):
+    """out[edges[k]] = max over the row a[k] (the wave speeds at an edge's points); 0 on
+    edges that are not ``live``."""
     for k in nb.prange(edges.shape[0]):
+        if not live[edges[k]]:
+            out[edges[k]] = 0.0
+            continue
         v = a[k, 0]
         for g in range(1, a.shape[1]):
             v = max(v, a[k, g])
@@ -108,16 +122,19 @@ def edge_max(a, edges, out):
 
 
 @nb.njit(**PAR)
-def velocity_bounds(Q, nbr, rho_cut, lo, hi, active):
+def velocity_bounds(Q, nbr, rho_cut, lo, hi, active, cact):
     """Per-cell bounds of each velocity component over the cell and its face neighbours
     (stage start), for the velocity limiter of pressureless transport. Cells with a
-    near-vacuum neighbourhood get ``active = False``."""
+    near-vacuum neighbourhood, and cells outside the active set ``cact``, get
+    ``active = False``."""
     m = Q.shape[0]
     n_i = m
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
-                active[i] = True
+                active[i] = cact[i]
+                if not cact[i]:
+                    continue
                 for d in range(2):
                     lo[i, d] = np.inf
                     hi[i, d] = -np.inf
@@ -136,6 +153,34 @@ def velocity_bounds(Q, nbr, rho_cut, lo, hi, active):
                             hi[i, d] = u
 
 
+@nb.njit(**FAST)
+def active_set(Q, nbr, e2t, eps, rings, cact, live):
+    """The active set of a step: the cells with a density above ``eps`` [ped/m^2] and those
+    within ``rings`` face neighbours of them (``cact`` (m,)), and the live edges, whose
+    cells are all active (``live`` (n_edges,)). Returns the number of active cells."""
+    m = Q.shape[0]
+    for i in range(m):
+        cact[i] = Q[i, 0] > eps
+    new = np.empty(m, np.bool_)
+    for _ in range(rings):
+        for i in range(m):
+            new[i] = cact[i]
+            if not cact[i]:
+                for k in range(3):
+                    j = nbr[i, k]
+                    if j >= 0 and cact[j]:
+                        new[i] = True
+                        break
+        cact[:] = new
+    for e in range(e2t.shape[0]):
+        r = e2t[e, 1]
+        live[e] = cact[e2t[e, 0]] and (r < 0 or cact[r])
+    n = 0
+    for i in range(m):
+        n += cact[i]
+    return n
+
+
 def cell_edges(mesh) -> np.ndarray:
     """(m, 3) the edges of every cell in increasing index: the order in which the gathering
     kernels below sum a cell's edge terms (the order the former scatter loops over the
@@ -145,7 +190,7 @@ def cell_edges(mesh) -> np.ndarray:
 
 @nb.njit(**PAR)
 def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vlo, vhi,
-              vactive, UL, P, R_, dQ):
+              vactive, UL, P, R_, dQ, cact, live):
     """Flux-corrected transport: F = FL + theta (FH - FL) per edge (all components), with
     theta chosen so that after a forward-Euler stage every cell keeps
 
@@ -161,14 +206,15 @@ def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vl
     (:func:`cell_edges`); ``inv_areas`` = 1/|T_i| [1/m^2]. ``UL`` (nv, m), ``P`` and ``R_``
     (5, m) are work arrays. ``dQ`` (m, nv) receives the divergence of F, as
     :func:`divergence` computes it. Three parallel passes: cells (margins), edges (factors
-    and blended fluxes), cells (divergence).
+    and blended fluxes), cells (divergence). Only the active cells ``cact`` and the
+    ``live`` edges (both cells active) take part; the others get zero flux and change.
     """
     ne, nv = FH.shape
     m = inv_areas.shape[0]
     nc = 5 if (use_vel and nv == 3) else 1
     if nc == 1:
         _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL[0], P[0],
-                     R_[0], dQ)
+                     R_[0], dQ, cact, live)
         return
     # per cell: the low-order update, and per constraint c (g = a . U with a given by
     # (c, i)) the decreases the antidiffusive fluxes would cause, then the factor R_
@@ -176,6 +222,8 @@ def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vl
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
                 for v in range(nv):
                     UL[v, i] = Q[i, v]
                 for c in range(nc):
@@ -210,6 +258,11 @@ def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vl
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_e) + BLOCK - 1) // BLOCK, NCHUNK):
             for e in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
+                if not live[e]:
+                    theta[e] = 1.0
+                    for v in range(nv):
+                        F[e, v] = 0.0
+                    continue
                 th = 1.0
                 for side in range(2):
                     i = e2t[e, side]
@@ -224,11 +277,12 @@ def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vl
                 theta[e] = th
                 for v in range(nv):
                     F[e, v] = FL[e, v] + th * (FH[e, v] - FL[e, v])
-    _gather_divergence(F, e2t, t2e, inv_areas, dQ)
+    _gather_divergence(F, e2t, t2e, inv_areas, dQ, cact)
 
 
 @nb.njit(**PAR)
-def _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R_, dQ):
+def _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R_, dQ, cact,
+                 live):
     """:func:`fct_blend` with the density constraint alone (the common case), its loops
     over constraints and sides written out."""
     ne, nv = FH.shape
@@ -237,6 +291,8 @@ def _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
                 ul = Q[i, 0]
                 pi = 0.0
                 for k in range(3):
@@ -264,6 +320,11 @@ def _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_e) + BLOCK - 1) // BLOCK, NCHUNK):
             for e in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
+                if not live[e]:
+                    theta[e] = 1.0
+                    for v in range(nv):
+                        F[e, v] = 0.0
+                    continue
                 L = e2t[e, 0]
                 R = e2t[e, 1]
                 d = FH[e, 0] - FL[e, 0]
@@ -275,7 +336,7 @@ def _fct_density(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, UL, P, R
                 theta[e] = th
                 for v in range(nv):
                     F[e, v] = FL[e, v] + th * (FH[e, v] - FL[e, v])
-    _gather_divergence(F, e2t, t2e, inv_areas, dQ)
+    _gather_divergence(F, e2t, t2e, inv_areas, dQ, cact)
 
 
 @nb.njit(**FAST, inline="always")
@@ -292,7 +353,7 @@ def _constraint_dot(c, i, FH, FL, e, vlo, vhi):
 
 
 @nb.njit(**PAR)
-def _gather_divergence(F, e2t, t2e, inv_areas, out):
+def _gather_divergence(F, e2t, t2e, inv_areas, out, cact):
     m, nv = out.shape
     n_i = m
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
@@ -300,6 +361,8 @@ def _gather_divergence(F, e2t, t2e, inv_areas, out):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
                 for v in range(nv):
                     out[i, v] = 0.0
+                if not cact[i]:
+                    continue
                 for k in range(3):
                     e = t2e[i, k]
                     if e2t[e, 0] == i:
@@ -311,22 +374,26 @@ def _gather_divergence(F, e2t, t2e, inv_areas, out):
 
 
 @nb.njit(**FAST)
-def divergence(F, e2t, t2e, inv_areas, out):
+def divergence(F, e2t, t2e, inv_areas, out, cact):
     """out_i = -(1/|T_i|) sum over its edges ``t2e[i]`` of the outward edge flux (F oriented
-    L -> R); ``inv_areas`` = 1/|T_i|."""
-    _gather_divergence(F, e2t, t2e, inv_areas, out)
+    L -> R) for the active cells ``cact``, 0 elsewhere; ``inv_areas`` = 1/|T_i|."""
+    _gather_divergence(F, e2t, t2e, inv_areas, out, cact)
 
 
 @nb.njit(**PAR)
-def cfl_dt(alpha_edge, lengths, e2t, t2e, areas, cfl):
-    """dt = cfl * min_i 2|T_i| / sum_e l_e alpha_e (the positivity bound of first-order
-    Rusanov is cfl = 1); ``t2e`` (m, 3) each cell's edges (:func:`cell_edges`)."""
+def cfl_dt(alpha_edge, lengths, e2t, t2e, areas, cfl, cact):
+    """dt = cfl * min_i 2|T_i| / sum_e l_e alpha_e over the active cells ``cact`` (the
+    positivity bound of first-order Rusanov is cfl = 1); ``t2e`` (m, 3) each cell's edges
+    (:func:`cell_edges`)."""
     m = areas.shape[0]
     d = np.empty(m)
     n_i = m
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    d[i] = np.inf
+                    continue
                 s = 0.0
                 for k in range(3):
                     e = t2e[i, k]
@@ -340,10 +407,13 @@ def cfl_dt(alpha_edge, lengths, e2t, t2e, areas, cfl):
 
 
 @nb.njit(**PAR)
-def add_point_mean(S, dQ):
-    """dQ[i] += mean of the source at the 3 interior points of cell i (S is (3 m, nv))."""
+def add_point_mean(S, dQ, cact):
+    """dQ[i] += mean of the source at the 3 interior points of cell i (S is (3 m, nv)), for
+    the active cells ``cact``."""
     m, nv = dQ.shape
     for i in nb.prange(m):
+        if not cact[i]:
+            continue
         for v in range(nv):
             dQ[i, v] += (S[3 * i, v] + S[3 * i + 1, v] + S[3 * i + 2, v]) / 3.0
 

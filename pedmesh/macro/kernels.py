@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import integrate
 
 __all__ = ["SFMRepulsion", "SFMFriction", "LongRange", "gamma1", "gamma2", "RadialTables"]
 
@@ -92,6 +91,8 @@ class LongRange:
 
 
 def _moment(kernel, power: int) -> float:
+    from scipy import integrate  # (here: it takes a quarter of a second to import)
+
     f = lambda r: float(kernel(r)) * r**power  # noqa: E731
     upper = kernel.support
     if not np.isfinite(upper):

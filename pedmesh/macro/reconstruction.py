@@ -71,7 +71,8 @@ class ReconstructionData:
     def apply(self, qbar: np.ndarray, out_edge: np.ndarray, out_int: np.ndarray, *,
               order: int = 3, eps_hat: float = 0.1, qref: np.ndarray | None = None,
               slot: np.ndarray | None = None,
-              positivity: tuple[float, float] | None = None) -> None:
+              positivity: tuple[float, float] | None = None,
+              cact: np.ndarray | None = None) -> None:
         """Point values of the reconstruction of cell averages ``qbar`` (m, nv): at the 6
         edge Gauss points into ``out_edge`` and at the 3 interior points into ``out_int``
         (m, 3, nv); see :func:`reconstruct`. ``out_edge`` is (m, 6, nv), or any array whose
@@ -80,15 +81,18 @@ class ReconstructionData:
 
         ``positivity = (rho_eps, rho_cut)`` applies the Zhang-Shu limiter of
         :func:`~pedmesh.macro._kernels.positivity_limit` to the result (variable 0 is the
-        density); the 3-variable kernel does it while it writes the points."""
+        density); the 3-variable kernel does it while it writes the points. ``cact`` (m,):
+        only these cells are reconstructed (default: all)."""
         qref = np.ones(qbar.shape[1]) if qref is None else qref
         m, nv = qbar.shape
+        if cact is None:
+            cact = np.ones(m, np.bool_)
         if slot is None:
             slot = np.arange(6 * m).reshape(m, 6)
         out_edge = out_edge.reshape(-1, nv)
         args = (qbar, order, self.stencil, self.R, self.opt_degree, self.moments, self.pairs,
                 self.pair_inv, self.n_pairs, self.h, eps_hat, qref, self.point_xy, out_edge, slot,
-                out_int)
+                out_int, cact)
         if nv == 3:
             limit = positivity is not None
             rho_eps, rho_cut = positivity if limit else (0.0, 0.0)
@@ -96,7 +100,7 @@ class ReconstructionData:
             return
         reconstruct(*args)
         if positivity is not None:
-            positivity_limit(out_edge, slot, out_int, qbar, *positivity)
+            positivity_limit(out_edge, slot, out_int, qbar, *positivity, cact)
 
 
 def _scaled_moments(pts_tri: np.ndarray, xc: np.ndarray, h) -> np.ndarray:
@@ -231,14 +235,16 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]], axis=1)
     det = np.linalg.det(M)
     good = np.abs(det) > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
-    inv = np.zeros_like(M)
-    inv[good] = np.linalg.inv(M[good])
-    for i, a_, b_, g in zip(ci[good], ca[good], cb[good], inv[good]):
-        k = n_pairs[i]
-        if k < MAX_PAIRS:
-            pairs[i, k] = (a_, b_)
-            pair_inv[i, k] = g
-            n_pairs[i] += 1
+    ci, ca, cb, inv = ci[good], ca[good], cb[good], np.linalg.inv(M[good])
+    # the first MAX_PAIRS candidates of every cell, in the order listed above
+    order = np.argsort(ci, kind="stable")
+    ci, ca, cb, inv = ci[order], ca[order], cb[order], inv[order]
+    first = np.searchsorted(ci, ci)  # (first candidate of the same cell)
+    rank = np.arange(len(ci)) - first
+    keep = rank < MAX_PAIRS
+    pairs[ci[keep], rank[keep]] = np.stack([ca[keep], cb[keep]], axis=1)
+    pair_inv[ci[keep], rank[keep]] = inv[keep]
+    np.add.at(n_pairs, ci[keep], 1)
     for i in np.flatnonzero(~full):  # boundary cells: also pairs with second-ring cells
         n1 = [int(j) for j in nbr[i] if j >= 0]
         cand = [(a, b) for ka, a in enumerate(n1) for b in n1[ka + 1:]]
@@ -332,7 +338,7 @@ def _flat(qbar, i, stencil, pairs, npair):
 
 @nb.njit(**PAR)
 def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
-                eps_hat, qref, point_xy, out_edge, slot, out_int):
+                eps_hat, qref, point_xy, out_edge, slot, out_int, cact):
     """Point values of the reconstruction of cell averages ``qbar`` (m, nv): the value at
     edge Gauss point p (0..5) of cell i goes to row ``slot[i, p]`` of ``out_edge`` (k, nv),
     the values at the 3 interior points to ``out_int`` (m, 3, nv) (kept apart so that the
@@ -341,7 +347,8 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
     ``order`` 3: CWENO3; 2: CWENO with the linear least-squares polynomial of the central
     stencil (second-order option); 1: first order (constant). Per cell, the five polynomial
     coefficients of every variable are found first (the stencil sums in scalars), then the
-    basis is evaluated once per point for all variables.
+    basis is evaluated once per point for all variables. Only the cells ``cact`` (m,) are
+    reconstructed.
     """
     m, nv = qbar.shape
     # blocks of cells dealt out in turn to the threads (see _kernels.BLOCK), each chunk
@@ -352,6 +359,8 @@ def reconstruct(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n
         coef = np.zeros((nv, 5))
         for b in range(c, nblock, NCHUNK):
             for i in range(b * BLOCK, min(m, (b + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
                 _reconstruct_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs,
                                   pair_inv, n_pairs, h, eps_hat, qref, point_xy, out_edge, slot,
                                   out_int, q0, coef)
@@ -446,7 +455,8 @@ def _sector(qbar, pa, pb, v, q0, g00, g01, g10, g11, eps, dk):
 
 @nb.njit(**PAR)
 def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
-                  eps_hat, qref, point_xy, out_edge, slot, out_int, limit, rho_eps, rho_cut):
+                  eps_hat, qref, point_xy, out_edge, slot, out_int, cact, limit, rho_eps,
+                  rho_cut):
     """:func:`reconstruct` for exactly 3 variables (density and momentum), each quantity held
     in scalars per variable: every stencil and sector row is read once for all three
     variables, and the work arrays of the general kernel are gone (about 10 % faster).
@@ -460,6 +470,8 @@ def _reconstruct3(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
     for c in nb.prange(NCHUNK):
         for b in range(c, nblock, NCHUNK):
             for i in range(b * BLOCK, min(m, (b + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
                 _reconstruct3_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs,
                                    pair_inv, n_pairs, h, eps_hat, qref, point_xy, out_edge,
                                    slot, out_int, limit, rho_eps, rho_cut)

@@ -175,6 +175,8 @@ class MacroRun:
     def parameters(self) -> dict[str, Any]:
         return {**self.model.parameters(), **dataclasses.asdict(self.fv_options),
                 "cfl": self.solver.cfl, "exit": self.solver.exit_kind,
+                "implicit_pressure": self.solver.implicit is not None,
+                "stages": self.solver.stages,
                 **dataclasses.asdict(self.options)}
 
     def cell_fields(self) -> dict[str, np.ndarray]:

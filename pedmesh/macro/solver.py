@@ -40,6 +40,15 @@ __all__ = ["FVOptions", "FVState", "FVSolver", "FVController", "PARALLEL_MIN_CEL
 #: busy (several runs at once, ensembles), OpenMP threads that wait for a descheduled
 #: partner make every step tens of times slower: one thread is the safe choice there
 PARALLEL_MIN_CELLS = 12_000
+#: the active set (FVOptions.active_set) reaches this many face neighbours beyond the occupied
+#: cells: the first ring receives what the occupied cells send within a step (under the CFL
+#: condition a stage moves mass by at most one cell), the second keeps the front's
+#: reconstruction and fluxes as without the active set
+ACTIVE_RINGS = 2
+#: CFL number of the semi-implicit step: on Example 2 with eos, 0.7 / 0.9 / 1.0 give T50 and
+#: T90 within 0.1 / 0.2 / 0.4 % of each other (1.0 retries steps); its wave speeds are the
+#: material ones, which the positivity bound (cfl = 1) already assumes
+IMEX_CFL = 0.9
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -48,8 +57,9 @@ class FVOptions:
 
     order: int = 3  #: 3 CWENO3 (default), 2 limited linear, 1 first order
     #: dt = cfl * min 2|T| / sum l alpha (1 = the first-order positivity bound); stages that
-    #: outrun their own bound are retried (see FVController.advance). None: the model's
-    #: ``default_cfl`` (0.7; 0.4 for mac1 with its friction inside the stages)
+    #: outrun their own bound are retried (see FVController.advance). None: IMEX_CFL for
+    #: the semi-implicit step, else the model's ``default_cfl`` (0.7; 0.9 for rdue; 0.4 for
+    #: mac1 with its friction inside the stages)
     cfl: float | None = None
     exit: str | None = None  #: exit condition; None = the model's default
     limiter: bool = True  #: Zhang-Shu point limiter + FCT flux limiter on the density
@@ -64,13 +74,28 @@ class FVOptions:
     #: threads of the compiled kernels; None: numba's thread count (NUMBA_NUM_THREADS or
     #: numba.set_num_threads) on meshes of at least PARALLEL_MIN_CELLS cells, else 1
     threads: int | None = None
+    #: semi-implicit step (:mod:`pedmesh.macro.implicit`): the pressure implicit, the time
+    #: step set by the material speed; None: on for every model with a pressure law in its
+    #: flux (eos, pw, mac2-local...), 0: the explicit scheme
+    implicit_pressure: bool | None = None
+    #: stages of the Shu-Osher SSP Runge-Kutta step: 3 (third order) or 2 (Heun, second
+    #: order; both keep the forward-Euler positivity bound). None: 2 for the semi-implicit
+    #: step and for models without momentum (rdue), whose answers they leave unchanged
+    #: (benchmarks/continuum_speed.py --sweep), else 3
+    stages: int | None = None
+    #: update only the active set each step: the cells with a density above ``active_eps``
+    #: and those within ACTIVE_RINGS neighbours of them (the others, empty or holding a film
+    #: below active_eps, keep their state; no flux crosses between two of them)
+    active_set: bool = True
+    #: [ped/m^2] density above which a cell counts as occupied for the active set
+    active_eps: float = 1e-5
 
     def __post_init__(self) -> None:
         def real(v) -> bool:
             return isinstance(v, (int, float, np.integer, np.floating)) and \
                 not isinstance(v, (bool, np.bool_))
 
-        for name in ("order", "cfl", "rho_eps", "eps_hat", "route_interval"):
+        for name in ("order", "cfl", "rho_eps", "eps_hat", "route_interval", "active_eps"):
             v = getattr(self, name)
             if v is None and name == "cfl":
                 continue
@@ -78,11 +103,17 @@ class FVOptions:
                 raise ParameterError(f"parameter '{name}' must be a number, got {v!r}")
             if not math.isfinite(v):
                 raise ParameterError(f"parameter '{name}' must be a finite number, got {v!r}")
+        if self.stages is not None:
+            if isinstance(self.stages, bool) or self.stages not in (2, 3):
+                raise ParameterError(f"parameter 'stages' must be 2 or 3, got {self.stages!r}")
+            object.__setattr__(self, "stages", int(self.stages))
         if self.order not in (1, 2, 3):  # 2.5 is not coerced to 2
             raise ParameterError(f"parameter 'order' must be 1, 2 or 3, got {self.order!r}")
         object.__setattr__(self, "order", int(self.order))
-        for name in ("limiter", "route_every_step"):
+        for name in ("limiter", "route_every_step", "implicit_pressure", "active_set"):
             v = getattr(self, name)
+            if v is None and name == "implicit_pressure":
+                continue
             if isinstance(v, str) or v not in (0, 1):  # also True/False, 0.0/1.0
                 raise ParameterError(f"parameter '{name}' must be 0 or 1 (off or on), "
                                      f"got {v!r}")
@@ -94,6 +125,9 @@ class FVOptions:
         if not self.route_interval >= 0:
             raise ParameterError(f"parameter 'route_interval' must be >= 0 [s], got "
                                  f"{self.route_interval!r}")
+        if not self.active_eps >= 0:
+            raise ParameterError(f"parameter 'active_eps' must be >= 0 [ped/m^2], got "
+                                 f"{self.active_eps!r}")
         if not self.rho_eps >= 0:
             raise ParameterError(f"parameter 'rho_eps' must be >= 0 [ped/m^2], got "
                                  f"{self.rho_eps!r}")
@@ -159,17 +193,47 @@ class FVSolver:
         self.model = model
         self.options = options or FVOptions()
         #: the CFL number in use (the option, else the model's default)
-        self.cfl = float(self.options.cfl if self.options.cfl is not None else model.default_cfl)
         self.exit_kind = model.check_exit(self.options.exit)
         #: threads the kernels run on (see FVOptions.threads)
         self.threads = _threads(self.options.threads, mesh.n_triangles)
         self.recon = build_reconstruction(mesh)
         model.bind(mesh)
+        #: the implicit pressure correction of the semi-implicit step (None: explicit), and
+        #: the model whose fluxes and sources the explicit stages evaluate (the model itself,
+        #: or its part without the pressure)
+        self.implicit = None
+        self.xmodel = model
+        want = self.options.implicit_pressure
+        able = bool(getattr(model, "supports_implicit_pressure", False))
+        if want and not able:
+            raise ParameterError(f"model '{model.name}' has no pressure law to treat "
+                                 "implicitly (implicit_pressure=1)")
+        if (want is None and able and boundary_state is None) or (want and able):
+            from .implicit import ImplicitPressure
+
+            self.xmodel = model.explicit_part()
+            self.implicit = ImplicitPressure(mesh, model)
+        #: the CFL number and the Runge-Kutta stages in use (the options, else the defaults
+        #: of the scheme and model: see FVOptions)
+        cfl = self.options.cfl
+        if cfl is None:
+            cfl = IMEX_CFL if self.implicit is not None else model.default_cfl
+        self.cfl = float(cfl)
+        stages = self.options.stages
+        if stages is None:
+            stages = 2 if (self.implicit is not None or model.n_vars == 1) else 3
+        self.stages = int(stages)
         self.boundary_state = boundary_state
         e2t = mesh.edge_triangles
         self.e2t = e2t
         self.t2e = K.cell_edges(mesh)  # (m, 3) each cell's edges, for the gathering kernels
         self.kind = mesh.edge_kind
+        #: the active set of the current step: cells updated, edges with a flux (both cells
+        #: active); all of them without FVOptions.active_set
+        self.cact = np.ones(mesh.n_triangles, np.bool_)
+        self.live = np.ones(mesh.n_edges, np.bool_)
+        self.n_active = mesh.n_triangles
+        self._live_faces = None  # (the live edges in the implicit correction's numbering)
         self.interior = np.flatnonzero(e2t[:, 1] >= 0)
         self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL)
                                     | (self.kind == BoundaryKind.OBSTACLE))
@@ -309,7 +373,7 @@ class FVSolver:
         ``alpha`` (n_edges,): receives each edge's largest wave speed [m/s] (at walls and
         exits that of the inner state, as in :meth:`max_dt`). ``skip_interior``: the
         interior edges are done elsewhere (:meth:`_low_order`)."""
-        model = self.model
+        model = self.xmodel
         nv = model.n_vars
         one = self._one_point_low_order(constant)
         sfx = "1" if one else ""
@@ -323,7 +387,7 @@ class FVSolver:
             if (name == "interior" and not one and alpha is None and model.edge_flux is not None
                     and self.boundary_state is None):
                 model.edge_flux(c["qL"], c["qR"], c["nx1"], c["ny1"], c["ex"], c["ey"], idx,
-                                self.lengths, F)
+                                self.lengths, F, self.live)
                 continue
             if name == "interior":
                 Fp, a = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
@@ -336,12 +400,14 @@ class FVSolver:
             else:
                 Fp = model.exit_flux(qL, *geo, self.exit_kind)
             if alpha is not None:
+                if a is None and name == "exit":
+                    a = model.exit_wave_speed(qL, Fp, geo[0], geo[1])
                 if a is None:
                     _, a = model.flux(qL, qL, *geo)
                 K.edge_max(np.ascontiguousarray(a, dtype=np.float64).reshape(len(idx), -1), idx,
-                           alpha)
+                           alpha, self.live)
             K.integrate_edges(np.ascontiguousarray(Fp).reshape(len(idx), -1, nv), self.lengths,
-                              idx, F)
+                              idx, F, self.live)
 
     def _low_order(self, Q: np.ndarray, t: float, F: np.ndarray, alpha: np.ndarray) -> None:
         """First-order edge fluxes ``F`` of cell averages ``Q`` and every edge's largest wave
@@ -349,16 +415,16 @@ class FVSolver:
         averages in place (no gathered edge states)."""
         one = self._one_point_low_order(True)
         sfx = "1" if one else ""
-        fused = self.model.cell_flux is not None and self.boundary_state is None
+        fused = self.xmodel.cell_flux is not None and self.boundary_state is None
         for name, c in self._cat.items():
             if not (fused and name == "interior"):
-                K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx])
+                K.gather_cells(Q, self.e2t, c["idx"], c["qL" + sfx], c["qR" + sfx], self.live)
         alpha[:] = 0.0
         self._fluxes(t, F, constant=True, alpha=alpha, skip_interior=fused)
         if fused:
             c = self._cat["interior"]
-            self.model.cell_flux(Q, self.e2t, c["idx"], c["nx1"], c["ny1"], c["ex"], c["ey"],
-                                 self.lengths, F, alpha)
+            self.xmodel.cell_flux(Q, self.e2t, c["idx"], c["nx1"], c["ny1"], c["ex"], c["ey"],
+                                  self.lengths, F, alpha, self.live)
 
     def _one_point_low_order(self, constant: bool) -> bool:
         return (constant and not self.model.direction_dependent_flux
@@ -367,13 +433,14 @@ class FVSolver:
     def residual(self, Q: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """dQ/dt of a forward-Euler stage of length ``dt`` (which the flux limiter needs) and
         the exit mass flux per exit [ped/s]."""
-        opt, model, R = self.options, self.model, self.recon
+        opt, model, R = self.options, self.xmodel, self.recon
         m, nv = Q.shape
         self._buffers(nv)
         Es, Vi = self._Es.reshape(-1, nv), self._Vi
         R.apply(Q, Es, Vi, order=opt.order, eps_hat=opt.eps_hat, qref=self.qref,
                 slot=self._slot,
-                positivity=(opt.rho_eps, model_rho_cut(model)) if opt.limiter else None)
+                positivity=(opt.rho_eps, model_rho_cut(model)) if opt.limiter else None,
+                cact=self.cact)
         F = self._F
         fct = opt.limiter and opt.order > 1
         FH = self._Fb if fct else F  # the high-order fluxes
@@ -385,24 +452,27 @@ class FVSolver:
             # the flux limiter keeps rho >= 0 only if the first-order stage does: dt within
             # the forward-Euler bound of this stage's wave speeds (which can exceed those of
             # the step start, from which the step was sized)
-            dt_fe = K.cfl_dt(alpha, self.lengths, self.e2t, self.t2e, self.areas, 1.0)
+            dt_fe = K.cfl_dt(alpha, self.lengths, self.e2t, self.t2e, self.areas, 1.0, self.cact)
             if dt > dt_fe:
                 raise StageTooLong(dt_fe)
             use_vel = bool(getattr(model, "pressureless", False)) and nv == 3
             if use_vel:
                 K.velocity_bounds(Q, self.mesh.triangle_neighbors, model_rho_cut(model),
-                                  self._vlo, self._vhi, self._vact)
+                                  self._vlo, self._vhi, self._vact, self.cact)
             K.fct_blend(FH, FL, self.e2t, self.t2e, self.inv_areas, Q, dt, opt.rho_eps, F,
-                        self._theta, use_vel, self._vlo, self._vhi, self._vact, *self._fct_work, dQ)
+                        self._theta, use_vel, self._vlo, self._vhi, self._vact, *self._fct_work, dQ,
+                        self.cact, self.live)
         else:
-            K.divergence(F, self.e2t, self.t2e, self.inv_areas, dQ)
+            K.divergence(F, self.e2t, self.t2e, self.inv_areas, dQ, self.cact)
         if model.source_mean is not None:
-            model.source_mean(Vi, self._e_int_x, self._e_int_y, dQ)
+            model.source_mean(Vi, self._e_int_x, self._e_int_y, dQ, self.cact)
         else:
             S = model.source(Vi.reshape(-1, nv), self._e_int_x, self._e_int_y)
-            K.add_point_mean(np.ascontiguousarray(S), dQ)
+            K.add_point_mean(np.ascontiguousarray(S), dQ, self.cact)
         C = model.cell_source(Q)
         if C is not None:
+            if self.n_active < len(Q):
+                C = C * self.cact[:, None]
             dQ += C
         out = np.bincount(self.exit_owner, weights=F[self.exits, 0], minlength=self.n_exits)
         return dQ, out
@@ -418,7 +488,7 @@ class FVSolver:
         floor = float(getattr(self.model, "speed_floor", 0.0))
         if floor > 0:
             np.maximum(alpha, floor, out=alpha)
-        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.t2e, self.areas, self.cfl)
+        dt = K.cfl_dt(alpha, self.lengths, self.e2t, self.t2e, self.areas, self.cfl, self.cact)
         return min(dt, self.model.source_dt(Q))
 
     def step(self, state: FVState, dt: float) -> None:
@@ -427,12 +497,16 @@ class FVSolver:
         split = self.model.has_split_source
         if split:  # Strang: half the stiff source, the SSP-RK3 step, the other half
             Q = self.model.split_source(Q, 0.5 * dt)
-        L0, o0 = self.residual(Q, t, dt)
-        Q1 = Q + dt * L0
-        L1, o1 = self.residual(Q1, t + dt, dt)
-        Q2 = 0.75 * Q + 0.25 * (Q1 + dt * L1)
-        L2, o2 = self.residual(Q2, t + 0.5 * dt, dt)
-        Qn = Q / 3.0 + 2.0 / 3.0 * (Q2 + dt * L2)
+        Q1, o0 = self._stage(Q, t, dt)
+        S1, o1 = self._stage(Q1, t + dt, dt)
+        if self.stages == 2:  # Heun
+            Qn = 0.5 * Q + 0.5 * S1
+            flow = 0.5 * (o0 + o1)
+        else:
+            Q2 = 0.75 * Q + 0.25 * S1
+            S2, o2 = self._stage(Q2, t + 0.5 * dt, dt)
+            Qn = Q / 3.0 + 2.0 / 3.0 * S2
+            flow = (o0 + o1 + 4.0 * o2) / 6.0
         # the stages keep rho >= 0 exactly; their convex combination can leave round-off
         # negatives (1e-40) in emptied cells: set those to zero (mass change ~1e-40)
         neg = Qn[:, 0] < 0.0
@@ -442,7 +516,6 @@ class FVSolver:
         if split:
             Qn = self.model.split_source(Qn, 0.5 * dt)
         state.Q = Qn
-        flow = (o0 + o1 + 4.0 * o2) / 6.0
         state.outflow = state.outflow + dt * flow
         state.last_exit_flux = flow
         state.t = t + dt
@@ -452,6 +525,28 @@ class FVSolver:
                 f"non-finite state at t = {state.t:.3f} s; try a smaller CFL number, e.g. "
                 f"--param cfl={self.cfl / 2:g}"
             )
+
+    def _stage(self, Q: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """A forward-Euler stage of length ``dt`` [s] from ``Q`` at time ``t`` [s] (the
+        explicit stage, then the implicit pressure correction of a semi-implicit step) and
+        the exit mass flux per exit [ped/s]."""
+        L, out = self.residual(Q, t, dt)
+        V = Q + dt * L
+        if self.implicit is not None:
+            if self._live_faces is None:
+                self._live_faces = self.implicit.live_faces(self.live)
+            V = self.implicit.correct(V, L[:, 1:3], dt, self.cact, self._live_faces)
+        return V, out
+
+    def update_active_set(self, Q: np.ndarray) -> int:
+        """The active set of the next step from the state ``Q`` (FVOptions.active_set;
+        else every cell and edge stays active); returns the number of active cells."""
+        if self.options.active_set and self.boundary_state is None:
+            self.n_active = int(K.active_set(Q, self.mesh.triangle_neighbors, self.e2t,
+                                             self.options.active_eps, ACTIVE_RINGS, self.cact,
+                                             self.live))
+            self._live_faces = None
+        return self.n_active
 
     def mass(self, Q: np.ndarray) -> float:
         """Number of pedestrians inside [ped]."""
@@ -465,6 +560,24 @@ def _threads(wanted: int | None, cells: int) -> int:
     if wanted is None:
         return most if cells >= PARALLEL_MIN_CELLS else 1
     return min(wanted, numba.config.NUMBA_NUM_THREADS)
+
+
+_BLAS = None
+
+
+def _one_blas_thread():
+    """A context in which BLAS (OpenBLAS under numpy and scipy) runs on one thread: the
+    conjugate gradients of the implicit step take dot products of 10^4 numbers, which
+    OpenBLAS splits over a second thread that then spins against numba's threads (measured:
+    every parallel kernel of the step 5-40 times slower). The caller's setting is back
+    afterwards."""
+    global _BLAS
+    if _BLAS is None:
+        import scipy.sparse.linalg  # noqa: F401  (its BLAS too, before the libraries are listed)
+        from threadpoolctl import ThreadpoolController
+
+        _BLAS = ThreadpoolController()
+    return _BLAS.limit(limits=1, user_api="blas")
 
 
 def model_rho_cut(model: MacroModel) -> float:
@@ -516,7 +629,8 @@ class FVController:
         if before != self.solver.threads:
             numba.set_num_threads(self.solver.threads)
         try:
-            return self._advance(t_stop)
+            with _one_blas_thread():
+                return self._advance(t_stop)
         finally:
             if before != self.solver.threads:
                 numba.set_num_threads(before)
@@ -529,6 +643,7 @@ class FVController:
             raise ValueError(f"t_stop must be later than the current time {t0!r} s, "
                              f"got {t_stop!r}")
         s.update_route(self.state.Q, t0)
+        s.update_active_set(self.state.Q)
         dt = s.max_dt(self.state.Q, t0)
         if not np.isfinite(dt) or dt <= 0:
             dt = 1e-2

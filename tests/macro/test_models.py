@@ -57,7 +57,8 @@ def test_stage_beyond_its_forward_euler_bound_is_refused_and_the_step_retried(lo
     from pedmesh.macro.solver import StageTooLong
 
     room = load_shipped("corridor_bottleneck.json")
-    run = MacroRun(room, room.mesh(), {"cfl": 1.0}, model="pw", model_params=PW_PARAMS)
+    run = MacroRun(room, room.mesh(), {"cfl": 1.0, "implicit_pressure": 0}, model="pw",
+                   model_params=PW_PARAMS)
     s, Q = run.solver, run.state.Q
     dt = s.max_dt(Q)  # the bound of Q, or less (pw floors the wave speeds at U_f)
     s.residual(Q, 0.0, dt)  # within the bound
@@ -266,26 +267,29 @@ def test_density_flux_limiter_equals_the_general_one():
 
     mesh = _small_mesh()
     model = macro_model("pw")
-    s = FVSolver(mesh, model, FVOptions())
+    s = FVSolver(mesh, model, FVOptions(implicit_pressure=0))
     Q = _rough_state(model, mesh)
     s.update_route(Q)
     s.residual(Q, 0.0, 1e-3)
     s._fluxes(0.0, s._Fb)
     s._low_order(Q, 0.0, s._FL, s._alpha)
-    dt = K.cfl_dt(s._alpha, s.lengths, s.e2t, s.t2e, s.areas, 0.9)
+    dt = K.cfl_dt(s._alpha, s.lengths, s.e2t, s.t2e, s.areas, 0.9, s.cact)
     m = mesh.n_triangles
     out = []
     for use_vel in (False, True):
         F, th, dQ = np.empty_like(s._Fb), np.empty(mesh.n_edges), np.empty_like(Q)
         work = (np.empty((3, m)), np.empty((5, m)), np.empty((5, m)))
-        K.fct_blend(s._Fb, s._FL, s.e2t, s.t2e, s.inv_areas, Q, dt, 0.0, F, th, use_vel, s._vlo,
-                    s._vhi, np.zeros(m, np.bool_), *work, dQ)
+        # (a floor rho_eps = 0.2 ped/m^2 makes the limiter act on a few per cent of the edges)
+        K.fct_blend(s._Fb, s._FL, s.e2t, s.t2e, s.inv_areas, Q, dt, 0.2, F, th, use_vel,
+                    s._vlo, s._vhi, np.zeros(m, np.bool_), *work, dQ, s.cact, s.live)
         out.append((F, th, dQ))
     assert 0 < np.mean(out[0][1] < 1) < 0.9  # the limiter acts on some edges
     for a, b in zip(out[0], out[1]):
-        np.testing.assert_array_equal(a, b)
+        # equal up to the rounding of a fused multiply-add, which LLVM may form in one
+        # kernel and not in the other (fastmath "contract")
+        np.testing.assert_allclose(a, b, rtol=4e-16, atol=4e-16 * np.abs(b).max())
     div = np.empty_like(Q)
-    K.divergence(out[0][0], s.e2t, s.t2e, s.inv_areas, div)
+    K.divergence(out[0][0], s.e2t, s.t2e, s.inv_areas, div, s.cact)
     np.testing.assert_allclose(out[0][2], div, rtol=0, atol=1e-13 * np.abs(div).max())
 
 

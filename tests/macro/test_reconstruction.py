@@ -110,7 +110,7 @@ def test_three_variable_kernel_equals_the_general_one(order):
     gi = np.zeros((m, 3, 3))
     reconstruct(q, order, R.stencil, R.R, R.opt_degree, R.moments, R.pairs, R.pair_inv,
                 R.n_pairs, R.h, 0.1, np.array([1.0, 0.5, 2.0]), R.point_xy, ge,
-                np.arange(6 * m).reshape(m, 6), gi)
+                np.arange(6 * m).reshape(m, 6), gi, np.ones(m, np.bool_))
     np.testing.assert_allclose(ve.reshape(-1, 3), ge, rtol=0, atol=1e-13)
     np.testing.assert_allclose(vi, gi, rtol=0, atol=1e-13)
 
@@ -135,7 +135,8 @@ def test_positivity_limiter_inside_the_three_variable_kernel():
     R.apply(q, ge, gi)
     acts = min(ge[..., 0].min(axis=1).min(), gi[..., 0].min())
     assert acts < -1e-3  # unlimited: negative densities
-    positivity_limit(ge.reshape(-1, 3), np.arange(6 * m).reshape(m, 6), gi, q, 0.0, 1e-3)
+    positivity_limit(ge.reshape(-1, 3), np.arange(6 * m).reshape(m, 6), gi, q, 0.0, 1e-3,
+                     np.ones(m, np.bool_))
     np.testing.assert_allclose(ve, ge, rtol=0, atol=1e-14)
     np.testing.assert_allclose(vi, gi, rtol=0, atol=1e-14)
     # non-negative up to the round-off of the scaling (both paths alike)

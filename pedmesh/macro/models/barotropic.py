@@ -10,11 +10,15 @@ velocity:
 * ``mac2-local`` (issue 6) and ``eos`` (issue 8) use other pressure laws.
 
 Numerics at the quadrature points: the velocity is desingularised near vacuum
-(Kurganov-Petrova, ``u = sqrt(2) rho m / sqrt(rho^4 + max(rho^4, rho_cut^4))``) and, where
-``rho < 10 rho_cut`` (the thin film a pressure drives ahead of a front into empty space),
-capped at ``u_max``; the flux is Rusanov with wave speed ``|u.n| + c(rho)``; walls are mirror
-states (zero mass flux); exits open onto empty space (``vacuum``: Rusanov against rho = 0,
-so mass only leaves) or are ``transmissive`` (zero-gradient, u.n clipped >= 0).
+(Kurganov-Petrova, ``u = sqrt(2) rho m / sqrt(rho^4 + max(rho^4, rho_vac^4))`` with
+``rho_vac = 1e-3 rho_cut``, 1e-6 ped/m^2) and capped at ``u_max`` (1.5 U_f); cells below
+``rho_cut`` are reconstructed to first order, so a thin film of crowd moves with its own
+velocity and drains instead of creeping. The flux is Rusanov with wave speed
+``|u.n| + c(rho)``; walls are mirror states (zero mass flux); exits open onto empty space
+(``vacuum``: Rusanov against rho = 0, so mass only leaves) or are ``transmissive``
+(zero-gradient, u.n clipped >= 0). With the semi-implicit step (the default for a model with
+a pressure) the interior fluxes carry no pressure (:meth:`BarotropicModel.explicit_part`)
+and :mod:`pedmesh.macro.implicit` adds it.
 """
 
 from __future__ import annotations
@@ -32,6 +36,8 @@ from .base import MacroModel, register_macro_model
 __all__ = ["BarotropicModel", "PressureLaw", "PayneWhitham"]
 
 SQRT2 = math.sqrt(2.0)
+#: rho_vac / rho_cut (see BarotropicModel.rho_vac)
+VAC_FRACTION = 1e-3
 ISOTHERMAL, QUADRATIC, TABLE, SPEED_ONLY = 0, 1, 2, 3
 
 
@@ -155,24 +161,23 @@ def _p_c_vec(kind, prm, rho, p, c):
 
 
 @nb.njit(**FAST, inline="always")
-def _prim(r, mx, my, rho_cut, umax):
-    """Desingularised velocity of a state (Kurganov-Petrova), capped at umax."""
+def _prim(r, mx, my, rho_vac, umax):
+    """Velocity of a state: m / rho, desingularised (Kurganov-Petrova) below ``rho_vac``, and
+    capped at ``umax``."""
     if r <= 0.0:
         return 0.0, 0.0, 0.0
-    if r >= rho_cut:  # the formula reduces to m / rho
+    if r >= rho_vac:  # the formula reduces to m / rho
         ir = 1.0 / r
         ux = mx * ir
         uy = my * ir
-        if r >= 10.0 * rho_cut:
-            return r, ux, uy
     else:
         r4 = r * r * r * r
-        c4 = rho_cut * rho_cut * rho_cut * rho_cut
+        c4 = rho_vac * rho_vac * rho_vac * rho_vac
         f = SQRT2 * r / math.sqrt(r4 + c4)
         ux = f * mx
         uy = f * my
     s2 = ux * ux + uy * uy
-    if s2 > umax * umax:  # near vacuum only (rho < 10 rho_cut): cap the velocity
+    if s2 > umax * umax:  # nobody walks faster than umax
         f = umax / math.sqrt(s2)
         ux *= f
         uy *= f
@@ -207,14 +212,18 @@ def rusanov(qL, qR, nx, ny, kind, prm, rho_cut, umax, F, alpha):
 
 
 @nb.njit(**PAR)
-def rusanov_edges(qL, qR, nx, ny, kind, prm, rho_cut, umax, edges, lengths, F):
-    """Rusanov fluxes at the 2 Gauss points of each of ``edges`` (states (k, 2, 3), unit
-    normals (k,)), integrated over the edge into ``F[e]`` (the 2-point Gauss rule)."""
+def rusanov_edges(qL, qR, nx, ny, kind, prm, rho_cut, umax, edges, lengths, F, live):
+    """Rusanov fluxes at the 2 Gauss points of each of the ``live`` ``edges`` (states
+    (k, 2, 3), unit normals (k,)), integrated over the edge into ``F[e]`` (the 2-point Gauss
+    rule); 0 on the others."""
     n_a = edges.shape[0]
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_a) + BLOCK - 1) // BLOCK, NCHUNK):
             for a in range(b_ * BLOCK, min(n_a, (b_ + 1) * BLOCK)):
                 e = edges[a]
+                if not live[e]:
+                    F[e, 0] = F[e, 1] = F[e, 2] = 0.0
+                    continue
                 f0, f1, f2, _ = _rusanov_point(qL[a, 0], qR[a, 0], nx[a], ny[a], kind, prm,
                                                rho_cut, umax)
                 g0, g1, g2, _ = _rusanov_point(qL[a, 1], qR[a, 1], nx[a], ny[a], kind, prm,
@@ -226,15 +235,18 @@ def rusanov_edges(qL, qR, nx, ny, kind, prm, rho_cut, umax, edges, lengths, F):
 
 
 @nb.njit(**PAR)
-def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, alpha):
+def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, alpha, live):
     """First-order Rusanov fluxes between the two cells of each of ``edges`` (interior),
     integrated over the edge (``F[e] = l_e f``), and the wave speeds ``alpha[e]``: the cell
-    states are read in place instead of being gathered first."""
+    states are read in place instead of being gathered first. 0 on edges not ``live``."""
     n_k = edges.shape[0]
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_k) + BLOCK - 1) // BLOCK, NCHUNK):
             for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
                 e = edges[k]
+                if not live[e]:
+                    F[e, 0] = F[e, 1] = F[e, 2] = alpha[e] = 0.0
+                    continue
                 f0, f1, f2, a = _rusanov_point(Q[e2t[e, 0]], Q[e2t[e, 1]], nx[k], ny[k], kind, prm,
                                                rho_cut, umax)
                 w = lengths[e]
@@ -376,14 +388,16 @@ def relaxation(q, ex, ey, U_f, beta, tau, rho_cut, umax, S):
 
 
 @nb.njit(**PAR)
-def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ):
+def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ, cact):
     """dQ[i] += the mean of the relaxation at the 3 interior points of cell i (states
-    ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,))."""
+    ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,)), for the active cells ``cact``."""
     c = 1.0 / (3.0 * tau)
     n_i = dQ.shape[0]
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
                 s1 = s2 = 0.0
                 for p in range(3):
                     a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, beta,
@@ -392,6 +406,18 @@ def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ):
                     s2 += a2
                 dQ[i, 1] += c * s1
                 dQ[i, 2] += c * s2
+
+
+@nb.njit(**PAR)
+def _exit_speed(q, F, nx, ny, rho_cut, umax, out):
+    """See :meth:`BarotropicModel.exit_wave_speed`."""
+    for k in nb.prange(q.shape[0]):
+        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+        un = ux * nx[k] + uy * ny[k]
+        a = abs(un)
+        if r > 0.0:
+            a = max(a, 2.0 * F[k, 0] / r - un)
+        out[k] = a
 
 
 @nb.njit(**PAR)
@@ -423,8 +449,15 @@ class BarotropicModel(MacroModel):
             law.kind == SPEED_ONLY
         self.U_f, self.beta = float(U_f), float(beta)
         self.tau, self.rho_cut = float(tau), float(rho_cut)
-        #: velocity cap [m/s] at near-vacuum points (rho < 10 rho_cut; default 2.5 U_f)
-        self.u_max = float(u_max) if u_max is not None else 2.5 * self.U_f
+        #: [ped/m^2] below this the velocity m / rho is desingularised (a film of 1e-6
+        #: ped/m^2 holds 0.005 people in a 5000 m^2 room); from rho_vac to rho_cut the film
+        #: moves at its own velocity (first order there, see rho_cut), so it drains
+        self.rho_vac = VAC_FRACTION * self.rho_cut
+        #: largest speed [m/s] (default 1.5 U_f): the relaxation keeps a crowd below U_f, but
+        #: a pressure can fling the thin edge of a dense crowd into empty space at u + 2c
+        #: (and a stage's explicit transport overshoot), and that film would set the time
+        #: step; on Example 2 a cap of 1.3 U_f or 2.5 U_f leaves T50 and T90 as they are
+        self.u_max = float(u_max) if u_max is not None else 1.5 * self.U_f
         # exits: Rusanov against empty space (vacuum), zero gradient (transmissive), and for
         # a model with a pressure the exact Godunov flux into empty space (godunov)
         ex = ["vacuum", "transmissive"] + (["godunov"] if law.pressured else [])
@@ -433,32 +466,67 @@ class BarotropicModel(MacroModel):
             ex.insert(0, default_exit)
         self.exit_conditions = tuple(ex)
         self._h_rho, self._h_val = law.h_table()
+        #: the law of the exact Godunov exit flux (the full pressure law, also in the
+        #: pressureless explicit part of a semi-implicit step: see :meth:`explicit_part`)
+        self.exit_law = law
+
+    @property
+    def supports_implicit_pressure(self) -> bool:
+        """Whether the pressure can be treated implicitly (a pressure law in the flux; not
+        mac1's repulsion, which acts through nonlocal sources)."""
+        return self.law.pressured and self.law.kind != SPEED_ONLY
+
+    def explicit_part(self) -> "BarotropicModel":
+        """The model without its pressure in the interior fluxes: the explicit part of the
+        semi-implicit scheme (:mod:`pedmesh.macro.implicit`). Transport, relaxation and
+        sources stay; the pressure acts through the implicit correction, except at exits,
+        whose exact Godunov flux keeps the full law (the pressure at the door decides its
+        throughput). The wave speeds, hence the time step, are the material ones."""
+        import copy
+
+        part = copy.copy(self)
+        part.law = PressureLaw.isothermal(0.0)
+        part.exit_law = self.law
+        return part
+
+    def exit_wave_speed(self, q, F, nx, ny):
+        """The wave speed (k,) [m/s] of exit points with states ``q`` (k, 3) and exit fluxes
+        ``F`` (k, 3) for the time step, or None for the Rusanov speed of the state. The
+        explicit part of a semi-implicit step (whose own law has no pressure, while its
+        exit flux has) gives the exact positivity bound of the exit flux:
+        ``max(|u.n|, 2 F_rho / rho - u.n)`` (with it the exit edge enters the first-order
+        positivity bound ``dt <= 2|T| / sum l alpha`` exactly as a Rusanov edge would)."""
+        if self.exit_law is self.law:
+            return None
+        a = np.empty(len(q))
+        _exit_speed(q, F, nx, ny, self.rho_vac, self.u_max, a)
+        return a
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         F = np.empty_like(qL)
         a = np.empty(len(qL))
-        rusanov(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F, a)
+        rusanov(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_vac, self.u_max, F, a)
         return F, a
 
-    def edge_flux(self, qL, qR, nx, ny, ex, ey, edges, lengths, F):
+    def edge_flux(self, qL, qR, nx, ny, ex, ey, edges, lengths, F, live):
         """High-order fluxes of ``edges`` from the states (k, 2, 3) at their 2 Gauss points,
-        integrated over the edges into ``F`` (n_edges, 3); unit normals (k,) per edge (the
-        flux does not depend on the direction ``ex``, ``ey``)."""
-        rusanov_edges(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_cut,
-                      self.u_max, edges, lengths, F)
+        integrated over the edges into ``F`` (n_edges, 3) (0 where not ``live``); unit
+        normals (k,) per edge (the flux does not depend on the direction ``ex``, ``ey``)."""
+        rusanov_edges(qL, qR, nx, ny, self.law.kind, self.law.params, self.rho_vac,
+                      self.u_max, edges, lengths, F, live)
 
-    def source_mean(self, Vi, ex, ey, dQ):
-        """Adds to ``dQ`` (m, 3) the mean of :meth:`source` at each cell's 3 interior points
-        (states ``Vi`` (m, 3, 3), directions (3 m,))."""
-        relaxation_mean(Vi, ex, ey, self.U_f, self.beta, self.tau, self.rho_cut, self.u_max,
-                        dQ)
+    def source_mean(self, Vi, ex, ey, dQ, cact):
+        """Adds to ``dQ`` (m, 3) the mean of :meth:`source` at each active (``cact``) cell's
+        3 interior points (states ``Vi`` (m, 3, 3), directions (3 m,))."""
+        relaxation_mean(Vi, ex, ey, self.U_f, self.beta, self.tau, self.rho_vac, self.u_max,
+                        dQ, cact)
 
-    def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha):
+    def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha, live):
         """First-order fluxes of interior ``edges`` between their cells' averages ``Q``,
         integrated over the edges into ``F`` (n_edges, 3), wave speeds into ``alpha`` (one
-        point per edge: the flux does not depend on the direction)."""
-        rusanov_cells(Q, e2t, edges, nx, ny, self.law.kind, self.law.params, self.rho_cut,
-                      self.u_max, lengths, F, alpha)
+        point per edge: the flux does not depend on the direction); 0 where not ``live``."""
+        rusanov_cells(Q, e2t, edges, nx, ny, self.law.kind, self.law.params, self.rho_vac,
+                      self.u_max, lengths, F, alpha, live)
 
     def wall_flux(self, q, nx, ny, ex, ey):
         g = np.empty_like(q)
@@ -467,28 +535,31 @@ class BarotropicModel(MacroModel):
         return F
 
     def exit_flux(self, q, nx, ny, ex, ey, kind):
+        law = self.exit_law
         if kind == "vacuum":
-            F, _ = self.flux(q, np.zeros_like(q), nx, ny, ex, ey)
+            F = np.empty_like(q)
+            rusanov(q, np.zeros_like(q), nx, ny, law.kind, law.params, self.rho_vac,
+                    self.u_max, F, np.empty(len(q)))
             return F
         if kind == "transmissive":
             F = np.empty_like(q)
-            transmissive(q, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max, F)
+            transmissive(q, nx, ny, law.kind, law.params, self.rho_vac, self.u_max, F)
             return F
         if kind == "godunov":
             F = np.empty_like(q)
-            vacuum_godunov(q, nx, ny, self.law.kind, self.law.params, self.rho_cut, self.u_max,
-                           self._h_rho, self._h_val, F)
+            vacuum_godunov(q, nx, ny, self.exit_law.kind, self.exit_law.params, self.rho_vac,
+                           self.u_max, self._h_rho, self._h_val, F)
             return F
         raise ParameterError(f"unknown exit condition '{kind}'")
 
     def source(self, q, ex, ey):
         S = np.empty_like(q)
-        relaxation(q, ex, ey, self.U_f, self.beta, self.tau, self.rho_cut, self.u_max, S)
+        relaxation(q, ex, ey, self.U_f, self.beta, self.tau, self.rho_vac, self.u_max, S)
         return S
 
     def velocity(self, q):
         out = np.empty((len(q), 2))
-        velocities(q, self.rho_cut, self.u_max, out)
+        velocities(q, self.rho_vac, self.u_max, out)
         return out
 
     @property

@@ -54,16 +54,17 @@ class MacroModel:
         (k,) used for it."""
         raise NotImplementedError
 
-    #: optional ``cell_flux(Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha)``: the
+    #: optional ``cell_flux(Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha, live)``: the
     #: first-order fluxes of interior ``edges`` read straight from the cell averages ``Q``,
     #: integrated over the edges into ``F`` (n_edges, nv), and each edge's largest wave speed
     #: into ``alpha``; unit normals (k,) per edge, directions (2 k,) at the 2 Gauss points of
-    #: each edge. None: the solver gathers the cell states and calls :meth:`flux`
+    #: each edge; both 0 on edges that are not ``live`` (n_edges,) (the active set). None:
+    #: the solver gathers the cell states and calls :meth:`flux`
     cell_flux = None
-    #: optional ``edge_flux(qL, qR, nx, ny, ex, ey, edges, lengths, F)``: :meth:`flux` at
-    #: the 2 Gauss points of interior ``edges`` (states (k, 2, nv), unit normals (k,) per
-    #: edge, directions (2 k,) per point), integrated over the edges into ``F`` in one pass;
-    #: None: the solver calls :meth:`flux` and integrates
+    #: optional ``edge_flux(qL, qR, nx, ny, ex, ey, edges, lengths, F, live)``: :meth:`flux`
+    #: at the 2 Gauss points of interior ``edges`` (states (k, 2, nv), unit normals (k,) per
+    #: edge, directions (2 k,) per point), integrated over the edges into ``F`` in one pass
+    #: (0 on edges not ``live``); None: the solver calls :meth:`flux` and integrates
     edge_flux = None
 
     def wall_flux(self, q, nx, ny, ex, ey):
@@ -74,13 +75,19 @@ class MacroModel:
         """Flux density (k, nv) out through an exit with outward normal n."""
         raise NotImplementedError
 
+    def exit_wave_speed(self, q, F, nx, ny):
+        """The wave speed (k,) [m/s] of exit points (states ``q``, exit fluxes ``F``) for
+        the time step, or None: the Rusanov speed of the state."""
+        return None
+
     def source(self, q, ex, ey):
         """Source (k, nv) at interior quadrature points."""
         return np.zeros_like(q)
 
-    #: optional ``source_mean(Vi, ex, ey, dQ)``: adds the mean of :meth:`source` at the 3
-    #: interior points of every cell (states ``Vi`` (m, 3, nv), directions (3 m,)) to ``dQ``
-    #: in one pass; None: the solver calls :meth:`source` and averages
+    #: optional ``source_mean(Vi, ex, ey, dQ, cact)``: adds the mean of :meth:`source` at the
+    #: 3 interior points of every active cell (``cact`` (m,); states ``Vi`` (m, 3, nv),
+    #: directions (3 m,)) to ``dQ`` in one pass; None: the solver calls :meth:`source` and
+    #: averages
     source_mean = None
 
     def bind(self, mesh) -> None:
