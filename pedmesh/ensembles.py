@@ -286,8 +286,9 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
              out: str | Path = "ensemble", *, overrides: Mapping[str, Any] | None = None,
              sweep: Mapping[str, Sequence[Any]] | None = None, seed: int = 0,
              client=None, scheduler: str | None = None, workers: int | None = None,
-             t_end: float = 1000.0, max_area: float = 0.5, min_angle: float = 30.0,
-             exit_size: float | None = None, max_cells: float | None = None,
+             t_end: float = 1000.0, max_area: float = 2.0, min_angle: float = 30.0,
+             feature_area: float | None = 0.5, exit_size: float | None = None,
+             max_cells: float | None = None,
              preset: str | None = None, quiet: bool = False):
     """Run an ensemble (see module docstring) and return its members as a pandas
     DataFrame (the rows of ensemble.csv).
@@ -327,7 +328,8 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     from .io import load_room
 
     room = load_room(geometry)  # a bad room file fails here, once, not in every member
-    mesh_options = {"max_area": max_area, "min_angle": min_angle, "exit_size": exit_size}
+    mesh_options = {"max_area": max_area, "min_angle": min_angle, "feature_area": feature_area,
+                    "exit_size": exit_size}
     _check_mesh_size(room, mesh_options, max_cells)  # and so does an oversized mesh
     out = Path(out)
     plan = _plan(geometry, name, members, out, overrides=overrides, sweep=sweep, seed=seed,
@@ -381,15 +383,15 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
 def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | None) -> None:
     """The mesher's size check, on the estimate, before any member is sent out."""
     from .errors import MeshError
-    from .mesh.triangulate import MAX_CELLS, check_max_cells, estimate_cells, exit_size_field
+    from .mesh.triangulate import MAX_CELLS, check_max_cells, estimate_cells, size_fields
 
     check_max_cells(max_cells)
     limit = MAX_CELLS if max_cells is None else max_cells
     if not math.isfinite(limit) or not (mesh_options["max_area"] > 0):
         return  # no limit, or a bad max_area that the mesher reports itself
-    fields = []
-    if mesh_options.get("exit_size") is not None and room.exits:
-        fields.append(exit_size_field(room, mesh_options["exit_size"]))
+    fields = size_fields(room, feature_area=mesh_options.get("feature_area"),
+                         exit_size=mesh_options.get("exit_size") if room.exits else None,
+                         max_area=mesh_options["max_area"])
     n = estimate_cells(room, mesh_options["max_area"], fields)
     if n > limit:
         raise MeshError(f"the members' mesh would have about {n:,.0f} triangles, more than "

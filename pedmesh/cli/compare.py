@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .mesh import add_mesh_args
+from .mesh import add_mesh_args, mesh_options
 
 HELP = "run several models on one room and write comparison plots and tables"
 DESCRIPTION = """\
@@ -62,9 +62,7 @@ def run(args: argparse.Namespace) -> int:
         with stop_on_signals():  # Ctrl-C / SIGTERM: the running model stops after its step
             res = run_comparison(room, mesh, specs, out, t_end=args.t_end, quiet=args.quiet,
                                  geometry=str(args.geometry), density_times=times,
-                                 mesh_options={"max_area": args.max_area,
-                                               "min_angle": args.min_angle,
-                                               "exit_size": args.exit_size},
+                                 mesh_options=mesh_options(args),
                                  reuse=not args.rerun)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}; finished models are kept and reused next time", file=sys.stderr)

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from .mesh import add_mesh_args
+from .mesh import add_mesh_args, mesh_options
 
 HELP = "run an ensemble or a parameter study on Dask (local cores or a cluster)"
 DESCRIPTION = """\
@@ -74,8 +74,7 @@ def run(args: argparse.Namespace) -> int:
         df = ensemble(args.geometry, name, args.members, out,
                       overrides=parse_param_overrides(args.param), sweep=parse_sweep(args.sweep),
                       seed=args.seed, scheduler=args.scheduler, workers=args.workers,
-                      t_end=args.t_end, max_area=args.max_area, min_angle=args.min_angle,
-                      exit_size=args.exit_size, max_cells=args.max_cells,
+                      t_end=args.t_end, **mesh_options(args), max_cells=args.max_cells,
                       quiet=args.quiet)
     except KeyboardInterrupt:
         print(f"pedmesh: ensemble interrupted; finished members are kept in {out}",

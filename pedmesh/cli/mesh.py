@@ -13,14 +13,26 @@ file that ParaView opens; boundary edges are written as line cells with the cell
 boundary_kind (1 wall, 2 obstacle, 3 exit) and boundary_owner (obstacle or exit number).
 
 example:
-  pedmesh mesh geometries/example3.json --max-area 0.25 -o example3_mesh.vtu
+  pedmesh mesh geometries/example3.json -o example3_mesh.vtu
+  pedmesh mesh geometries/example3.json --max-area 0.25 --feature-area none -o uniform.vtu
 """
+
+
+def _area_or_none(text: str):
+    if text.strip().lower() in ("none", "uniform"):
+        return None
+    return float(text)
 
 
 def add_mesh_args(p: argparse.ArgumentParser) -> None:
     """Mesh options shared by every command that meshes a room."""
-    p.add_argument("--max-area", type=float, default=0.5, metavar="A",
-                   help="largest triangle area in m^2 (default: 0.5, edges of about 1 m)")
+    p.add_argument("--max-area", type=float, default=2.0, metavar="A",
+                   help="largest triangle area in m^2, in the open (default: 2, edges of "
+                        "about 2.1 m)")
+    p.add_argument("--feature-area", type=_area_or_none, default=0.5, metavar="F",
+                   help="triangle area in m^2 at exits, corners and walls, growing to "
+                        "--max-area away from them (default: 0.5, edges of about 1.07 m); "
+                        "'none': a uniform mesh of --max-area, as is any F >= A")
     p.add_argument("--min-angle", type=float, default=30.0, metavar="Q",
                    help="smallest triangle angle in degrees (default: 30, at most 34)")
     p.add_argument("--exit-size", type=float, default=None, metavar="H",
@@ -43,8 +55,13 @@ def mesh_from_args(args: argparse.Namespace):
     from ..io import load_room
 
     room = load_room(args.geometry)
-    return room, room.mesh(max_area=args.max_area, min_angle=args.min_angle,
-                           exit_size=args.exit_size, max_cells=args.max_cells)
+    return room, room.mesh(**mesh_options(args), max_cells=args.max_cells)
+
+
+def mesh_options(args: argparse.Namespace) -> dict:
+    """The mesh options given on the command line (as recorded in a run's settings)."""
+    return {"max_area": args.max_area, "min_angle": args.min_angle,
+            "feature_area": args.feature_area, "exit_size": args.exit_size}
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from .mesh import add_mesh_args
+from .mesh import add_mesh_args, mesh_options
 
 HELP = "simulate an evacuation with a model (sfm, ...) and write the results"
 DESCRIPTION = """\
@@ -83,8 +83,7 @@ def run(args: argparse.Namespace) -> int:
         with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current step
             s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
                           quiet=args.quiet, geometry=str(args.geometry),
-                          mesh_options={"max_area": args.max_area, "min_angle": args.min_angle,
-                                        "exit_size": args.exit_size},
+                          mesh_options=mesh_options(args),
                           model_options=model_options)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}", file=sys.stderr)

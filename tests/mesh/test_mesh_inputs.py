@@ -70,8 +70,29 @@ def test_tiny_max_area_gives_the_triangles_it_asks_for():
 @pytest.mark.parametrize("max_area", [2.0, 0.5, 0.1])
 def test_cell_estimate_is_close(load_shipped, geometry, max_area):
     room = load_shipped(geometry)
-    n = room.mesh(max_area=max_area).n_triangles
+    n = room.mesh(max_area=max_area, feature_area=None).n_triangles
     assert 0.9 <= n / estimate_cells(room, max_area) <= 1.1
+
+
+@pytest.mark.parametrize("geometry", ["example2.json", "pillar_hall.json", "l_shaped.json",
+                                      "corridor_bottleneck.json"])
+def test_default_graded_mesh_and_its_estimate(load_shipped, geometry):
+    """The default mesh: 0.5 m^2 at exits, corners and walls, up to 2 m^2 in the open; the
+    size estimate made before meshing holds for it too."""
+    from pedmesh.mesh.triangulate import size_fields
+
+    room = load_shipped(geometry)
+    mesh = room.mesh()
+    uniform = room.mesh(max_area=0.5, feature_area=None)
+    est = estimate_cells(room, 2.0, size_fields(room))
+    assert 0.85 <= mesh.n_triangles / est <= 1.15
+    assert mesh.n_triangles < 0.75 * uniform.n_triangles
+    assert mesh.min_angle >= 29.9
+    # small triangles at the exits, large ones far from every feature
+    ex = mesh.edge_triangles[mesh.exit_edges(), 0]
+    assert mesh.areas[ex].max() <= 0.6  # (the target is met at the centroid, ~0.3 m in)
+    if geometry == "example2.json":
+        assert mesh.areas.max() > 1.5 and mesh.n_triangles < 0.35 * uniform.n_triangles
 
 
 def test_graded_estimate_is_close(load_shipped):
@@ -87,8 +108,10 @@ def test_oversized_mesh_is_refused_before_it_is_built(load_shipped, geometries_d
     room = load_shipped("example2.json")
     with pytest.raises(MeshError, match=r"about [\d,]+ triangles, more than the limit of 1,000"):
         room.mesh(max_area=0.5, max_cells=1000)
-    assert room.mesh(max_area=20.0, max_cells=1000).n_triangles < 1000
+    assert room.mesh(max_area=20.0, feature_area=None, max_cells=1000).n_triangles < 1000
     assert room.mesh(max_area=5.0, max_cells=math.inf).n_triangles > 1000  # no limit
+    with pytest.raises(MeshError, match="more than the limit of 1,000"):  # graded: counted
+        room.mesh(max_area=20.0, max_cells=1000)
     status = main(["mesh", str(geometries_dir / "example2.json"), "--max-area", "1e-4"])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and "--max-cells" in err[0]
