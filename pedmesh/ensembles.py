@@ -287,7 +287,7 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
              sweep: Mapping[str, Sequence[Any]] | None = None, seed: int = 0,
              client=None, scheduler: str | None = None, workers: int | None = None,
              t_end: float = 1000.0, max_area: float = 2.0, min_angle: float = 30.0,
-             feature_area: float | None = 0.5, exit_size: float | None = None,
+             feature_area: float | None = 0.3, exit_size: float | None = None,
              max_cells: float | None = None,
              preset: str | None = None, quiet: bool = False):
     """Run an ensemble (see module docstring) and return its members as a pandas

@@ -29,9 +29,9 @@ def add_mesh_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-area", type=float, default=2.0, metavar="A",
                    help="largest triangle area in m^2, in the open (default: 2, edges of "
                         "about 2.1 m)")
-    p.add_argument("--feature-area", type=_area_or_none, default=0.5, metavar="F",
+    p.add_argument("--feature-area", type=_area_or_none, default=0.3, metavar="F",
                    help="triangle area in m^2 at exits, corners and walls, growing to "
-                        "--max-area away from them (default: 0.5, edges of about 1.07 m); "
+                        "--max-area away from them (default: 0.3, edges of about 0.83 m); "
                         "'none': a uniform mesh of --max-area, as is any F >= A")
     p.add_argument("--min-angle", type=float, default=30.0, metavar="Q",
                    help="smallest triangle angle in degrees (default: 30, at most 34)")

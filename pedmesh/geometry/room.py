@@ -536,7 +536,7 @@ class Room:
         max_area: float = 2.0,
         min_angle: float = 30.0,
         *,
-        feature_area: float | None = 0.5,
+        feature_area: float | None = 0.3,
         exit_size: float | None = None,
         size_growth: float = 0.2,
         size: Any = None,

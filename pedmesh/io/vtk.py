@@ -84,11 +84,33 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
 
 
 def _grid(mesh):
-    """A pyvista UnstructuredGrid of the mesh's triangles (z = 0)."""
-    import pyvista as pv
+    """A VTK unstructured grid of the mesh's triangles (z = 0), built with VTK's own classes
+    (pyvista would add a quarter of a second of imports to every run)."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import VTK_TRIANGLE, vtkCellArray, vtkUnstructuredGrid
 
-    pts = np.column_stack([mesh.points, np.zeros(mesh.n_points)])
-    return pv.UnstructuredGrid({pv.CellType.TRIANGLE: np.asarray(mesh.triangles)}, pts)
+    pts = vtkPoints()
+    pts.SetData(numpy_to_vtk(np.column_stack([mesh.points, np.zeros(mesh.n_points)]),
+                             deep=True))
+    m = mesh.n_triangles
+    offsets = numpy_to_vtkIdTypeArray(np.arange(0, 3 * m + 1, 3, dtype=np.int64), deep=True)
+    conn = numpy_to_vtkIdTypeArray(np.ascontiguousarray(mesh.triangles, np.int64).ravel(),
+                                   deep=True)
+    cells = vtkCellArray()
+    cells.SetData(offsets, conn)
+    grid = vtkUnstructuredGrid()
+    grid.SetPoints(pts)
+    grid.SetCells(VTK_TRIANGLE, cells)
+    return grid
+
+
+def _vtk_array(name: str, values: np.ndarray):
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+
+    arr = numpy_to_vtk(np.ascontiguousarray(_pad3(np.asarray(values))), deep=True)
+    arr.SetName(name)
+    return arr
 
 
 def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayMap) -> Path:
@@ -97,17 +119,20 @@ def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayM
     from vtkmodules.vtkIOCore import vtkLZ4DataCompressor
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
 
-    grid.point_data.clear()
-    grid.cell_data.clear()
     for k, v in (point_data or {}).items():
         if len(v) != mesh.n_points:
             raise ValueError(f"point field '{k}' has {len(v)} values for {mesh.n_points} vertices")
-        grid.point_data[k] = _pad3(np.asarray(v))
     for k, v in (cell_data or {}).items():
         if len(v) != mesh.n_triangles:
             raise ValueError(f"cell field '{k}' has {len(v)} values for {mesh.n_triangles} "
                              "triangles")
-        grid.cell_data[k] = _pad3(np.asarray(v))
+    pd, cd = grid.GetPointData(), grid.GetCellData()
+    pd.Initialize()
+    cd.Initialize()
+    for k, v in (point_data or {}).items():
+        pd.AddArray(_vtk_array(k, v))
+    for k, v in (cell_data or {}).items():
+        cd.AddArray(_vtk_array(k, v))
     tmp = path.with_name(path.stem + ".part.vtu")
     w = vtkXMLUnstructuredGridWriter()
     w.SetFileName(str(tmp))
@@ -169,6 +194,7 @@ class PVDWriter:
         self.dir.mkdir(parents=True, exist_ok=True)
         self.entries: list[tuple[float, str]] = []
         self._grid = self._grid_mesh = None  # the VTK grid of the frames' mesh
+        self._lines: list[str] = []  # the index's DataSet lines
         self._write_index()
 
     def __enter__(self) -> "PVDWriter":
@@ -208,13 +234,19 @@ class PVDWriter:
         return Path(file)
 
     def _write_index(self) -> None:
-        root = ET.Element("VTKFile", type="Collection", version="0.1", byte_order="LittleEndian")
-        coll = ET.SubElement(root, "Collection")
-        for t, f in self.entries:
-            ET.SubElement(coll, "DataSet", timestep=repr(t), group="", part="0", file=f)
-        ET.indent(root)
+        """The collection file, rewritten whole after every frame (an interrupted run keeps
+        a valid one); the frames' lines are kept, so a frame adds one line of work."""
+        from xml.sax.saxutils import quoteattr
+
+        while len(self._lines) < len(self.entries):
+            t, f = self.entries[len(self._lines)]
+            self._lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" '
+                               f'file={quoteattr(f)} />\n')
+        text = ("<?xml version='1.0' encoding='utf-8'?>\n"
+                '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
+                "  <Collection>\n" + "".join(self._lines) + "  </Collection>\n</VTKFile>\n")
         tmp = self.path.with_name(self.path.name + ".part")
-        ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8")
+        tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, self.path)
 
     def close(self) -> None:

@@ -56,41 +56,40 @@ __all__ = ["ImplicitPressure"]
 #: of the crowd, where the sound is fast, enters the linear system
 A_IMPLICIT = 1e-2
 #: relative residual of the conjugate gradients (the correction is then applied as fluxes,
-#: so the mass stays exact to round-off whatever this is; the density is then within about
-#: 1e-8 of the exact solution of the linear system)
-CG_RTOL = 1e-8
+#: so the mass stays exact to round-off whatever this is; 1e-6 and 1e-8 give the same T50,
+#: T90 and step count on Example 2, the former in 8 iterations instead of 12)
+CG_RTOL = 1e-6
 
 
-def enthalpy_table(law, rho_max: float = 60.0, n: int = 3000) -> tuple[np.ndarray, np.ndarray]:
-    """(rho, h) with ``h(rho) = int_0^rho p'(s)/s ds`` [m^2/s^2] on a grid (finite at 0 for
-    laws with p ~ rho^2 near vacuum); beyond the grid ``h`` grows as ``p'(rho_max) ln rho``."""
-    r = np.concatenate([[0.0], np.geomspace(1e-8, rho_max, n)])
+def enthalpy_table(law, rho_max: float = 60.0, n: int = 12000) -> tuple[np.ndarray, np.ndarray]:
+    """(drho, h): ``h(rho) = int_0^rho p'(s)/s ds`` [m^2/s^2] at ``rho = k drho``,
+    k = 0..n (finite at 0 for laws with p ~ rho^2 near vacuum; integrated on a geometric
+    grid, then sampled on the uniform one, so that a lookup is one multiplication); beyond
+    ``rho_max`` ``h`` grows as ``p'(rho_max) ln rho``."""
+    r = np.concatenate([[0.0], np.geomspace(1e-8, rho_max, 20 * n)])
     c = law.sound_speed(r)
     g = np.where(r > 0, c * c / np.where(r > 0, r, 1.0), 0.0)  # p'(s)/s
     g[0] = g[1]  # the limit at vacuum (p'/s is bounded for these laws)
     h = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(r))])
-    return np.ascontiguousarray(r), np.ascontiguousarray(h)
+    u = np.linspace(0.0, rho_max, n + 1)
+    return np.array([rho_max / n]), np.ascontiguousarray(np.interp(u, r, h))
 
 
 @nb.njit(**FAST, inline="always")
 def _h(rho, tr, th, kind, prm):
-    """Enthalpy h(rho) from its table (linear interpolation; log beyond)."""
-    n = tr.shape[0]
+    """Enthalpy h(rho) from its uniform table (``tr[0]`` the spacing; linear interpolation;
+    log beyond)."""
     if rho <= 0.0:
         return 0.0
-    if rho >= tr[n - 1]:
-        _, c = _p_c(kind, prm, tr[n - 1])
-        return th[n - 1] + c * c * math.log(rho / tr[n - 1])
-    lo = 0
-    hi = n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if tr[mid] <= rho:
-            lo = mid
-        else:
-            hi = mid
-    w = (rho - tr[lo]) / (tr[hi] - tr[lo])
-    return th[lo] + w * (th[hi] - th[lo])
+    n = th.shape[0] - 1
+    x = rho / tr[0]
+    if x >= n:
+        r_n = n * tr[0]
+        _, c = _p_c(kind, prm, r_n)
+        return th[n] + c * c * math.log(rho / r_n)
+    k = int(x)
+    w = x - k
+    return th[k] + w * (th[k + 1] - th[k])
 
 
 @nb.njit(**PAR)
@@ -292,7 +291,7 @@ class ImplicitPressure:
         self.kind = int(law.kind)
         self.prm = np.ascontiguousarray(law.params, dtype=np.float64)
         self.enthalpy = law.kind != ISOTHERMAL
-        self.tr, self.th = enthalpy_table(law) if self.enthalpy else (np.zeros(2), np.zeros(2))
+        self.tr, self.th = enthalpy_table(law) if self.enthalpy else (np.ones(1), np.zeros(2))
         self.rho_vac = float(model.rho_vac)
         self.u_max = float(model.u_max)
 

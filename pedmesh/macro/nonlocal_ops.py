@@ -261,10 +261,14 @@ def _row_dot2(ptr, idx, dx, dy, rho, i):
 
 
 @nb.njit(cache=True, parallel=True)  # (rows in parallel; no FMA: scipy's exact sums)
-def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, out):
+def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, active, out):
     """out_i = rho_i (sum_j W_ij rho_j [+ sum_j I_ij rho_j]) for both components, with Wx,
-    Wy (and Ix, Iy) sharing one CSR pattern each (sums in CSR order, like scipy's)."""
+    Wy (and Ix, Iy) sharing one CSR pattern each (sums in CSR order, like scipy's); 0 in
+    empty cells and in those outside ``active`` without summing their rows."""
     for i in nb.prange(rho.shape[0]):
+        if rho[i] == 0.0 or not active[i]:
+            out[i, 0] = out[i, 1] = 0.0
+            continue
         fx, fy = _row_dot2(ptr, idx, dx, dy, rho, i)
         if walls:
             gx, gy = _row_dot2(iptr, iidx, ix, iy, rho, i)
@@ -275,10 +279,14 @@ def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, out):
 
 
 @nb.njit(cache=True, parallel=True)
-def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, out):
+def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, active, out):
     """out_i = rho_i (K m)_i - (K rho)_i m_i with the 2x2 blocks K_ij = [[kxx, kxy], [kxy,
-    kyy]] on one CSR pattern (see :meth:`PairOperators.friction`)."""
+    kyy]] on one CSR pattern (see :meth:`PairOperators.friction`); 0 in empty cells at rest
+    and in those outside ``active`` without summing their rows."""
     for i in nb.prange(rho.shape[0]):
+        if (rho[i] == 0.0 and mom[i, 0] == 0.0 and mom[i, 1] == 0.0) or not active[i]:
+            out[i, 0] = out[i, 1] = 0.0
+            continue
         rxx = 0.0
         rxy = 0.0
         ryy = 0.0
@@ -302,6 +310,10 @@ def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, out):
         my = mom[i, 1]
         out[i, 0] = rho[i] * (axx + axy) - (rxx * mx + rxy * my)
         out[i, 1] = rho[i] * (ayx + ayy) - (rxy * mx + ryy * my)
+
+
+def _all(m: int) -> np.ndarray:
+    return np.ones(m, np.bool_)
 
 
 def _same_pattern(*Ms) -> bool:
@@ -341,8 +353,10 @@ class PairOperators:
     def nnz(self) -> int:
         return sum(int(M.nnz) for M in (self.Wx, self.Kxx, self.Ix) if M is not None)
 
-    def repulsion(self, rho: np.ndarray, walls: bool = True) -> np.ndarray:
-        """(m, 2) repulsion force density rho_i sum_j W_ij rho_j (plus wall images)."""
+    def repulsion(self, rho: np.ndarray, walls: bool = True,
+                  active: np.ndarray | None = None) -> np.ndarray:
+        """(m, 2) repulsion force density rho_i sum_j W_ij rho_j (plus wall images); 0
+        outside the cells ``active`` (m,) (default: all)."""
         rho = np.ascontiguousarray(rho, dtype=np.float64)
         out = np.empty((len(rho), 2))
         W, I_ = self.Wx, self.Ix
@@ -352,18 +366,21 @@ class PairOperators:
         else:
             Iy = self.Iy
         _rep_apply(W.indptr, W.indices, W.data, self.Wy.data, I_.indptr, I_.indices, I_.data,
-                   Iy.data, use_i, rho, out)
+                   Iy.data, use_i, rho, _all(len(rho)) if active is None else active, out)
         return out
 
-    def friction(self, rho: np.ndarray, mom: np.ndarray) -> np.ndarray:
+    def friction(self, rho: np.ndarray, mom: np.ndarray,
+                 active: np.ndarray | None = None) -> np.ndarray:
         """(m, 2) friction force density rho_i sum_j K_ij rho_j (u_j - u_i), with
         rho_j u_j = m_j and rho_i u_i = m_i:
-        rho_i sum_j K_ij (m_j - rho_j u_i) = rho_i (K m)_i - (K rho)_i m_i."""
+        rho_i sum_j K_ij (m_j - rho_j u_i) = rho_i (K m)_i - (K rho)_i m_i; 0 outside the
+        cells ``active`` (m,) (default: all)."""
         rho = np.ascontiguousarray(rho, dtype=np.float64)
         mom = np.ascontiguousarray(mom, dtype=np.float64)
         out = np.empty((len(rho), 2))
         K = self.Kxx
-        _fric_apply(K.indptr, K.indices, K.data, self.Kxy.data, self.Kyy.data, rho, mom, out)
+        _fric_apply(K.indptr, K.indices, K.data, self.Kxy.data, self.Kyy.data, rho, mom,
+                    _all(len(rho)) if active is None else active, out)
         return out
 
 

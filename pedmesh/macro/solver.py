@@ -10,7 +10,7 @@
   its first-order fluxes, which each stage checks), the model's sources at 3 interior
   points, and Shu-Osher SSP-RK3. The desired direction is re-solved from the current
   density (cost ``1/U_e(rho)``, cell densities averaged to the vertices) at the start of
-  a step once ``route_interval`` (0.5 s) has passed since the last solve, and frozen in
+  a step once ``route_interval`` (1 s) has passed since the last solve, and frozen in
   between (an O(dt) splitting every step, like the paper's, with ``route_interval=0``).
   A model's stiff source (``has_split_source``, e.g. mac1's friction) is applied by Strang
   splitting: half a step of it alone before the SSP-RK3 step and half a step after.
@@ -67,10 +67,10 @@ class FVOptions:
     eps_hat: float = 0.1  #: CWENO epsilon = (eps_hat q_ref h / 1 m)^2
     route_every_step: bool = True  #: re-solve the eikonal every step (else only at start)
     #: [s] with route_every_step: re-solve only once this much simulated time has passed
-    #: since the last solve (0: every step; the direction is held in between). 0.5 s changes
-    #: T50/T90 by at most 0.02 % on Examples 2 and 3 and the corridor bottleneck and saves a
-    #: quarter of the wall time (benchmarks/continuum_speed.py)
-    route_interval: float = 0.5
+    #: since the last solve (0: every step; the direction is held in between), as the SFM
+    #: does. Against every step, 0.5 s and 1 s change T50/T90 by at most 0.04 % for eos and
+    #: rdue on Example 2 and the corridor bottleneck (benchmarks/continuum_speed.py --sweep)
+    route_interval: float = 1.0
     #: threads of the compiled kernels; None: numba's thread count (NUMBA_NUM_THREADS or
     #: numba.set_num_threads) on meshes of at least PARALLEL_MIN_CELLS cells, else 1
     threads: int | None = None
@@ -79,9 +79,9 @@ class FVOptions:
     #: flux (eos, pw, mac2-local...), 0: the explicit scheme
     implicit_pressure: bool | None = None
     #: stages of the Shu-Osher SSP Runge-Kutta step: 3 (third order) or 2 (Heun, second
-    #: order; both keep the forward-Euler positivity bound). None: 2 for the semi-implicit
-    #: step and for models without momentum (rdue), whose answers they leave unchanged
-    #: (benchmarks/continuum_speed.py --sweep), else 3
+    #: order; both keep the forward-Euler positivity bound). None: 3 for a pressure in
+    #: explicit fluxes (implicit_pressure=0), else 2, which leaves T50 and T90 of Example 2
+    #: the same to 0.01 s for eos, rdue, mac1 and mac2-nonlocal
     stages: int | None = None
     #: update only the active set each step: the cells with a density above ``active_eps``
     #: and those within ACTIVE_RINGS neighbours of them (the others, empty or holding a film
@@ -220,8 +220,10 @@ class FVSolver:
             cfl = IMEX_CFL if self.implicit is not None else model.default_cfl
         self.cfl = float(cfl)
         stages = self.options.stages
-        if stages is None:
-            stages = 2 if (self.implicit is not None or model.n_vars == 1) else 3
+        if stages is None:  # 3 only for a pressure in explicit fluxes (the reference scheme)
+            law = getattr(model, "law", None)
+            explicit_pressure = self.implicit is None and law is not None and law.pressured
+            stages = 3 if explicit_pressure else 2
         self.stages = int(stages)
         self.boundary_state = boundary_state
         e2t = mesh.edge_triangles
@@ -546,6 +548,7 @@ class FVSolver:
                                              self.options.active_eps, ACTIVE_RINGS, self.cact,
                                              self.live))
             self._live_faces = None
+            self.model.active = self.cact
         return self.n_active
 
     def mass(self, Q: np.ndarray) -> float:

@@ -18,7 +18,7 @@ PW_PARAMS = {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}
 @pytest.fixture(scope="module")
 def room_mesh(load_shipped):
     room = load_shipped("l_shaped.json")
-    return room, room.mesh(max_area=2.0)
+    return room, room.mesh(max_area=2.0, feature_area=None)  # (coarse, uniform)
 
 
 def new_run(room_mesh, model="pw", params=PW_PARAMS, **overrides):
@@ -148,6 +148,7 @@ def test_a_limit_not_ahead_is_an_error(room_mesh, bad):
 
 def _next_cfl_dt(run):
     run.solver.update_route(run.state.Q)  # as the step will: then its CFL dt
+    run.solver.update_active_set(run.state.Q)
     return run.solver.max_dt(run.state.Q, run.t)
 
 

@@ -218,12 +218,11 @@ def test_options_are_checked(box):
     with pytest.raises(ParameterError, match="no pressure law"):
         FVSolver(box, macro_model("rdue"), FVOptions(implicit_pressure=1), direction=no_route)
     # the defaults: semi-implicit (2 stages, cfl 0.9) where there is a pressure law,
-    # explicit otherwise; rdue on 2 stages; mac1 explicit on 3
+    # explicit otherwise, on 2 stages unless a pressure is in the explicit fluxes
     for name, imp, stages in (("eos", True, 2), ("pw", True, 2), ("mac2-local", True, 2),
-                              ("rdue", False, 2), ("mac1", False, 3),
-                              ("mac2-nonlocal", False, 3)):
+                              ("rdue", False, 2), ("mac1", False, 2),
+                              ("mac2-nonlocal", False, 2)):
         s = FVSolver(box, macro_model(name), FVOptions(), direction=no_route)
         assert (s.implicit is not None) == imp and s.stages == stages, name
-    s = FVSolver(box, macro_model("eos"), FVOptions(implicit_pressure=0, stages=2),
-                 direction=no_route)
-    assert s.implicit is None and s.stages == 2 and s.cfl == 0.7
+    s = FVSolver(box, macro_model("eos"), FVOptions(implicit_pressure=0), direction=no_route)
+    assert s.implicit is None and s.stages == 3 and s.cfl == 0.7

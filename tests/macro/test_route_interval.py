@@ -1,6 +1,6 @@
 """``route_interval``: the continuum route (eikonal) is re-solved only once that much
-simulated time has passed since the last solve; 0 is every step (as before 0.5 s became
-the default)."""
+simulated time has passed since the last solve; 0 is every step (as before an interval,
+now 1 s, became the default)."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def test_solved_once_per_interval(hall, interval):
     run, times, starts = _solve_times(*hall, params)
     if interval is None:
         interval = FVOptions().route_interval
-        assert interval == 0.5
+        assert interval == 1.0
     assert times[0] == 0.0
     gaps = np.diff(times)
     assert gaps.min() >= interval * (1 - 1e-9)

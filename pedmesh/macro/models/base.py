@@ -102,6 +102,11 @@ class MacroModel:
         """Largest stable time step [s] of the sources (inf if they do not limit it)."""
         return np.inf
 
+    #: the solver's active set of the current step (bool (m,)), or None (every cell): a
+    #: model's own cell operators (nonlocal forces, split sources) may skip the other cells,
+    #: whose state the step keeps
+    active = None
+
     #: the model has a stiff source that the solver applies by Strang splitting around each
     #: SSP-RK3 step (:meth:`split_source`) instead of inside the stages
     has_split_source: bool = False

@@ -121,9 +121,9 @@ class Mac1(BarotropicModel):
     def cell_source(self, Q):
         rho = np.maximum(Q[:, 0], 0.0)
         out = np.zeros_like(Q)
-        out[:, 1:3] = self.ops.repulsion(rho, walls=self.walls)
+        out[:, 1:3] = self.ops.repulsion(rho, walls=self.walls, active=self.active)
         if self.use_friction and not self.has_split_source:
-            out[:, 1:3] += self.ops.friction(rho, Q[:, 1:3])
+            out[:, 1:3] += self.ops.friction(rho, Q[:, 1:3], active=self.active)
         return out
 
     def split_source(self, Q: np.ndarray, dt: float) -> np.ndarray:
@@ -132,7 +132,10 @@ class Mac1(BarotropicModel):
         rho = np.ascontiguousarray(np.maximum(Q[:, 0], 0.0))
         n = max(1, int(np.ceil(dt * self._friction_rate(rho) / self.friction_substep)))
         h = dt / n
-        f = self.ops.friction
+
+        def f(r, m):
+            return self.ops.friction(r, m, active=self.active)
+
         M = Q[:, 1:3].copy()
         for _ in range(n):
             M1 = M + h * f(rho, M)
