@@ -61,6 +61,7 @@ def venue(scale: float = 1.0) -> dict:
     starts = []
     for hall, (x0, x1) in zip("abc", ((2, 97), (103, 197), (203, 298))):
         counts = [round(31_000 * scale * (b - a) / depth) for a, b in bands]
+        counts[-1] += round(31_000 * scale) - sum(counts)  # (the hall's total exactly)
         for k, ((a, b), n) in enumerate(zip(bands, counts)):
             starts.append({"name": f"hall-{hall}-{k + 1}", "polygon": rect(x0, a, x1, b),
                            "count": n})

@@ -45,7 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import cg
 
-from ._kernels import BLOCK, FAST, NCHUNK, PAR
+from ._kernels import BLOCK, FAST, NCHUNK, PAR, cell_edges
 from .models.barotropic import ISOTHERMAL, _p_c, _prim
 
 __all__ = ["ImplicitPressure"]
@@ -236,7 +236,7 @@ class ImplicitPressure:
     mesh
         The triangle mesh.
     model
-        The model (its pressure ``law``, ``rho_cut``, ``u_max``).
+        The model (its pressure ``law``, ``rho_vac``, ``u_max``).
     """
 
     def __init__(self, mesh, model) -> None:
@@ -263,7 +263,7 @@ class ImplicitPressure:
         # (+1 where the face normal points out of the cell), and the exit number (-1)
         face_of = np.full(mesh.n_edges, -1, np.int64)
         face_of[interior] = np.arange(len(interior))
-        t2e = np.ascontiguousarray(np.sort(mesh.triangle_edges, axis=1)).astype(np.int64)
+        t2e = cell_edges(mesh)
         self.cf = face_of[t2e]
         self.cs = np.where(e2t[t2e, 0] == np.arange(m)[:, None], 1.0, -1.0)
         exits = np.flatnonzero(mesh.edge_kind == BoundaryKind.EXIT)
@@ -276,7 +276,13 @@ class ImplicitPressure:
         # the neighbour across each local face (for the system's rows)
         nb_ = np.where(self.cs > 0, self.R[np.maximum(self.cf, 0)], self.L[np.maximum(self.cf, 0)])
         self.nbr = np.where(self.cf >= 0, nb_, -1).astype(np.int64)
-        self.set_model(model)
+        law = model.law
+        self.kind = int(law.kind)
+        self.prm = np.ascontiguousarray(law.params, dtype=np.float64)
+        self.enthalpy = law.kind != ISOTHERMAL  # (isothermal: grad p, h = c0^2 ln rho)
+        self.tr, self.th = enthalpy_table(law) if self.enthalpy else (np.ones(1), np.zeros(2))
+        self.rho_vac = float(model.rho_vac)
+        self.u_max = float(model.u_max)
         k = len(interior)
         self._a = np.empty(k)
         self._G = np.empty(k)
@@ -285,15 +291,6 @@ class ImplicitPressure:
         self._W = np.empty((5, m))
         #: statistics: solves, conjugate-gradient iterations, unknowns (summed)
         self.stats = {"solves": 0, "iterations": 0, "unknowns": 0}
-
-    def set_model(self, model) -> None:
-        law = model.law
-        self.kind = int(law.kind)
-        self.prm = np.ascontiguousarray(law.params, dtype=np.float64)
-        self.enthalpy = law.kind != ISOTHERMAL
-        self.tr, self.th = enthalpy_table(law) if self.enthalpy else (np.ones(1), np.zeros(2))
-        self.rho_vac = float(model.rho_vac)
-        self.u_max = float(model.u_max)
 
     def correct(self, V: np.ndarray, Rq: np.ndarray, dt: float, cact: np.ndarray,
                 livef: np.ndarray) -> np.ndarray:

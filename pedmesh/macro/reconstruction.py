@@ -98,6 +98,11 @@ class ReconstructionData:
             rho_eps, rho_cut = positivity if limit else (0.0, 0.0)
             _reconstruct3(*args, limit, rho_eps, rho_cut)
             return
+        if nv == 1:
+            limit = positivity is not None
+            rho_eps, rho_cut = positivity if limit else (0.0, 0.0)
+            _reconstruct1(*args, limit, rho_eps, rho_cut)
+            return
         reconstruct(*args)
         if positivity is not None:
             positivity_limit(out_edge, slot, out_int, qbar, *positivity, cact)
@@ -611,6 +616,98 @@ def _reconstruct3_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs, p
             out_int[i, p - 6, 1] = vb
             out_int[i, p - 6, 2] = vc
     if limit and mn < rho_eps:  # Zhang-Shu: scale the density's deviations (rare)
+        th = zhang_shu_theta(qa, mn, rho_eps)
+        for p in range(9):
+            x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
+            va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
+            if p < 6:
+                out_edge[slot[i, p], 0] = va
+            else:
+                out_int[i, p - 6, 0] = va
+
+
+@nb.njit(**PAR)
+def _reconstruct1(qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv, n_pairs, h,
+                  eps_hat, qref, point_xy, out_edge, slot, out_int, cact, limit, rho_eps,
+                  rho_cut):
+    """:func:`reconstruct` for one variable (the density of rdue) in scalars, with the
+    positivity limiter applied as the points are written (as :func:`_reconstruct3`): about
+    three times faster than the general kernel with its work arrays."""
+    m = qbar.shape[0]
+    nblock = (m + BLOCK - 1) // BLOCK
+    for c in nb.prange(NCHUNK):
+        for b in range(c, nblock, NCHUNK):
+            for i in range(b * BLOCK, min(m, (b + 1) * BLOCK)):
+                if cact[i]:
+                    _reconstruct1_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs,
+                                       pair_inv, n_pairs, h, eps_hat, qref, point_xy,
+                                       out_edge, slot, out_int, limit, rho_eps, rho_cut)
+
+
+@nb.njit(**FAST, inline="always")
+def _reconstruct1_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs, pair_inv,
+                       n_pairs, h, eps_hat, qref, point_xy, out_edge, slot, out_int, limit,
+                       rho_eps, rho_cut):
+    """:func:`_reconstruct1` of cell ``i``."""
+    S = stencil.shape[1]
+    deg = opt_degree[i] if order >= 2 else 0
+    npair = n_pairs[i]
+    qa = qbar[i, 0]
+    if limit and qa < rho_cut:
+        deg = 0
+    if deg > 0 and npair > 0:
+        if qbar[stencil[i, 0], 0] == qa and _flat(qbar, i, stencil, pairs, npair):
+            deg = 0
+    if deg == 0 or npair == 0:
+        for p in range(6):
+            out_edge[slot[i, p], 0] = qa
+        for p in range(3):
+            out_int[i, p, 0] = qa
+        return
+    mxx = moments[i, 0]
+    mxy = moments[i, 1]
+    myy = moments[i, 2]
+    dk = (1.0 - D0) / npair
+    a0 = a1 = a2 = a3 = a4 = 0.0
+    for s in range(S):
+        j = stencil[i, s]
+        if j < 0:
+            break
+        da = qbar[j, 0] - qa
+        a0 += R[i, s, 0] * da
+        a1 += R[i, s, 1] * da
+        a2 += R[i, s, 2] * da
+        a3 += R[i, s, 3] * da
+        a4 += R[i, s, 4] * da
+    if order == 2:
+        a2 = a3 = a4 = 0.0
+    ea = (h[i] * eps_hat * qref[0]) ** 2 + 1e-300
+    wa0 = _w(_beta2(a0, a1, a2, a3, a4, mxx, mxy, myy), ea, D0)
+    ta = wa0
+    sax = say = uax = uay = 0.0
+    for kp in range(npair):
+        lx, ly, w = _sector(qbar, pairs[i, kp, 0], pairs[i, kp, 1], 0, qa, pair_inv[i, kp, 0, 0],
+                            pair_inv[i, kp, 0, 1], pair_inv[i, kp, 1, 0],
+                            pair_inv[i, kp, 1, 1], ea, dk)
+        ta, sax, say, uax, uay = ta + w, sax + w * lx, say + w * ly, uax + lx, uay + ly
+    ia = 1.0 / ta
+    fa = wa0 * ia * (1.0 / D0)
+    ka = fa * dk
+    A0 = fa * a0 + sax * ia - ka * uax
+    A1 = fa * a1 + say * ia - ka * uay
+    A2 = fa * a2
+    A3 = fa * a3
+    A4 = fa * a4
+    mn = qa
+    for p in range(9):
+        x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
+        va = qa + A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy
+        mn = min(mn, va)
+        if p < 6:
+            out_edge[slot[i, p], 0] = va
+        else:
+            out_int[i, p - 6, 0] = va
+    if limit and mn < rho_eps:  # Zhang-Shu: scale the deviations (rare)
         th = zhang_shu_theta(qa, mn, rho_eps)
         for p in range(9):
             x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)

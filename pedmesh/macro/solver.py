@@ -1,4 +1,5 @@
-"""The finite-volume core: state, solver (one residual, one SSP-RK3 step) and controller.
+"""The finite-volume core: state, solver (one residual, one SSP Runge-Kutta step) and
+controller.
 
 * :class:`FVState` holds *what* is evolved: the conserved cell averages ``Q`` (m, nv)
   (density [ped/m^2] and momentum [ped/(m s)]), the time and the cumulative outflow through
@@ -8,12 +9,16 @@
   edge, a flux-corrected-transport blend with the first-order fluxes that keeps the density
   non-negative after every stage (provided the stage is within the forward-Euler bound of
   its first-order fluxes, which each stage checks), the model's sources at 3 interior
-  points, and Shu-Osher SSP-RK3. The desired direction is re-solved from the current
-  density (cost ``1/U_e(rho)``, cell densities averaged to the vertices) at the start of
-  a step once ``route_interval`` (1 s) has passed since the last solve, and frozen in
-  between (an O(dt) splitting every step, like the paper's, with ``route_interval=0``).
-  A model's stiff source (``has_split_source``, e.g. mac1's friction) is applied by Strang
-  splitting: half a step of it alone before the SSP-RK3 step and half a step after.
+  points, and Shu-Osher SSP Runge-Kutta stages (Heun's 2 or 3). For a model with a pressure
+  law every stage is semi-implicit (:mod:`pedmesh.macro.implicit`): the explicit stage
+  without the pressure in the interior fluxes, then the implicit pressure correction. Each
+  step updates the active set only: the occupied cells and two rings of neighbours. The
+  desired direction is re-solved from the current density (cost ``1/U_e(rho)``, cell
+  densities averaged to the vertices) at the start of a step once ``route_interval`` (1 s)
+  has passed since the last solve, and frozen in between (an O(dt) splitting every step,
+  like the paper's, with ``route_interval=0``). A model's stiff source
+  (``has_split_source``, e.g. mac1's friction) is applied by Strang splitting: half a step
+  of it alone before the Runge-Kutta step and half a step after.
 * :class:`FVController` decides *when*: the CFL time step (a step refused by a stage is
   taken again, shorter), output times and stopping.
 """
@@ -192,7 +197,6 @@ class FVSolver:
         self.mesh = mesh
         self.model = model
         self.options = options or FVOptions()
-        #: the CFL number in use (the option, else the model's default)
         self.exit_kind = model.check_exit(self.options.exit)
         #: threads the kernels run on (see FVOptions.threads)
         self.threads = _threads(self.options.threads, mesh.n_triangles)
@@ -494,7 +498,8 @@ class FVSolver:
         return min(dt, self.model.source_dt(Q))
 
     def step(self, state: FVState, dt: float) -> None:
-        """One Shu-Osher SSP-RK3 step of length ``dt`` [s], in place."""
+        """One Shu-Osher SSP Runge-Kutta step (:attr:`stages`) of length ``dt`` [s], in
+        place."""
         Q, t = state.Q, state.t
         split = self.model.has_split_source
         if split:  # Strang: half the stiff source, the SSP-RK3 step, the other half

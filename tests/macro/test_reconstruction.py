@@ -141,3 +141,32 @@ def test_positivity_limiter_inside_the_three_variable_kernel():
     np.testing.assert_allclose(vi, gi, rtol=0, atol=1e-14)
     # non-negative up to the round-off of the scaling (both paths alike)
     assert ve[..., 0].min() > -1e-15 and vi[..., 0].min() > -1e-15
+
+
+@pytest.mark.parametrize("order", [3, 2, 1])
+@pytest.mark.parametrize("limit", [False, True])
+def test_one_variable_kernel_equals_the_general_one(order, limit):
+    """One variable (rdue's density) takes a kernel of its own; it must give the general
+    kernel's values followed by the separate positivity limiter, on rough, smooth, steep,
+    near-vacuum and empty data."""
+    from pedmesh.macro._kernels import positivity_limit
+    from pedmesh.macro.reconstruction import reconstruct
+
+    mesh = ROOM.mesh(max_area=0.01)
+    R = build_reconstruction(mesh)
+    c = mesh.centroids
+    rng = np.random.default_rng(3)
+    q = (1 + np.sin(2 * c[:, 0]) + 2.0 * (c[:, 1] > 1.5) * rng.random(len(c)))[:, None]
+    q[c[:, 0] > 3] = 0.0  # a flat empty part
+    q[rng.random(len(c)) < 0.05] = 5e-4  # below rho_cut
+    m = mesh.n_triangles
+    ve, vi = np.zeros((m, 6, 1)), np.zeros((m, 3, 1))
+    R.apply(q, ve, vi, order=order, positivity=(0.0, 1e-3) if limit else None)
+    ge, gi = np.zeros((6 * m, 1)), np.zeros((m, 3, 1))
+    slot, every = np.arange(6 * m).reshape(m, 6), np.ones(m, np.bool_)
+    reconstruct(q, order, R.stencil, R.R, R.opt_degree, R.moments, R.pairs, R.pair_inv,
+                R.n_pairs, R.h, 0.1, np.ones(1), R.point_xy, ge, slot, gi, every)
+    if limit:
+        positivity_limit(ge, slot, gi, q, 0.0, 1e-3, every)
+    np.testing.assert_allclose(ve.reshape(-1, 1), ge, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(vi, gi, rtol=0, atol=1e-13)
