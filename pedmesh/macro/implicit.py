@@ -4,7 +4,7 @@ A barotropic model ``rho_t + div q = 0``, ``q_t + div(q (x) q / rho) + grad p(rh
 two speeds: the crowd's own (|u|, about 1 m/s) and the sound speed ``sqrt(p'(rho))`` of its
 pressure (3-4 m/s in the queue at a door for ``eos``, 7 m/s for the mean-field pressure).
 An explicit scheme must resolve the faster one. The semi-implicit step resolves only the
-crowd: every forward-Euler stage of SSP-RK3 becomes
+crowd: every forward-Euler stage of the SSP Runge-Kutta step becomes
 
 1. an explicit stage of the model *without* its pressure in the interior fluxes (transport,
    relaxation, sources; CWENO3 and the flux limiter as before; exits keep their exact
@@ -22,7 +22,8 @@ crowd: every forward-Euler stage of SSP-RK3 becomes
    momentum moves (so that in a steady queue, where that change balances the pressure, the
    two cancel: Rhie-Chow). The matrix ``diag|T| + sum a_f`` is a symmetric M-matrix, so the
    new density is non-negative whenever the right-hand side is; it is solved by conjugate
-   gradients (scipy) on the cells the pressure couples. The face fluxes of the solution
+   gradients (scipy) on the cells the pressure couples strongly (``a_f / |T| > 1e-2``; the
+   other faces take the same flux explicitly). The face fluxes of the solution
    are applied conservatively (mass to round-off whatever the solver tolerance), limited
    where a cell would lose more than it has (rarely, and never in exact arithmetic when the
    right-hand side is non-negative);
