@@ -26,9 +26,18 @@ class MacroRunOptions:
     #: the room counts as empty when fewer than this many pedestrians [ped] remain (the
     #: continuum never reaches exactly zero); t_evac_100 is that moment
     empty_below: float = 0.5
+    #: 1: steps run freely and each frame is the linear interpolation in time of the two
+    #: states around its time (conservative and positive, like the states); 0: steps are
+    #: shortened to land on every frame time (about 8 % more steps at 1 s frames)
+    dense_frames: int = 1
 
     def __post_init__(self) -> None:
+        if self.dense_frames not in (0, 1) or isinstance(self.dense_frames, bool):
+            raise ParameterError(f"parameter 'dense_frames' must be 0 or 1, got "
+                                 f"{self.dense_frames!r}")
         for f in fields(self):
+            if f.name == "dense_frames":
+                continue
             v = getattr(self, f.name)
             ok = isinstance(v, (int, float)) and not isinstance(v, bool)
             if not (ok and math.isfinite(v) and v > 0):
@@ -156,6 +165,7 @@ class MacroRun:
         sliver of a step follows (see :meth:`FVController.advance`; steps are only ever
         shortened). ``math.inf`` (the default): the plain CFL step, bit for bit as before.
         A ``t_limit`` that is NaN or not after :attr:`t` is a ValueError."""
+        self._prev = (self.state.t, self.state.Q.copy())
         self.controller.advance(None if t_limit == math.inf else t_limit)
         self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
         self._curve_t.append(self.state.t)
@@ -179,8 +189,30 @@ class MacroRun:
                 "stages": self.solver.stages,
                 **dataclasses.asdict(self.options)}
 
-    def cell_fields(self) -> dict[str, np.ndarray]:
-        Q = self.state.Q
+    @property
+    def dense_frames(self) -> bool:
+        """Whether the driver lets steps run past frame times and asks for
+        :meth:`write_frame_at` instead (MacroRunOptions.dense_frames)."""
+        return bool(self.options.dense_frames)
+
+    def state_at(self, t: float) -> np.ndarray:
+        """The cell state at time ``t`` [s] within the last step: the linear interpolation
+        in time of the states at its start and end (the current state at its end)."""
+        t1, Q = self.state.t, self.state.Q
+        prev = getattr(self, "_prev", None)
+        if prev is None or t >= t1 or prev[0] >= t1:
+            return Q
+        t0, Q0 = prev
+        if not t0 <= t:
+            raise ValueError(f"t = {t!r} s is not within the last step [{t0}, {t1}] s")
+        w = (t - t0) / (t1 - t0)
+        return (1.0 - w) * Q0 + w * Q
+
+    def cell_fields(self, Q: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Density [ped/m^2] and velocity [m/s] per cell (of the current state, or of
+        ``Q``)."""
+        if Q is None:
+            Q = self.state.Q
         rho = Q[:, 0]
         if self.model.n_vars == 1:  # RDUE: u = U_e(rho) e
             speed = self.model.U_f * np.exp(-self.model.beta * np.maximum(rho, 0))
@@ -190,8 +222,13 @@ class MacroRun:
         return {"rho": rho, "velocity": vel}
 
     def write_frame(self, writer, frame: int) -> None:
-        f = self.cell_fields()
-        writer.density_frame(self.state.t, self.mesh, point_data={"phi": self.solver.phi},
+        self.write_frame_at(writer, frame, self.state.t)
+
+    def write_frame_at(self, writer, frame: int, t: float) -> None:
+        """Write frame ``frame`` at time ``t`` [s] within the last step (see
+        :meth:`state_at`)."""
+        f = self.cell_fields(self.state_at(t))
+        writer.density_frame(t, self.mesh, point_data={"phi": self.solver.phi},
                              cell_data={"rho": f["rho"], "velocity": f["velocity"]})
 
     def summary(self) -> dict[str, Any]:

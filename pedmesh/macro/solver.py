@@ -240,6 +240,7 @@ class FVSolver:
         self.live = np.ones(mesh.n_edges, np.bool_)
         self.n_active = mesh.n_triangles
         self._live_faces = None  # (the live edges in the implicit correction's numbering)
+        self._lo_key = None  # (max_dt's state: Q, t, sum of Q; see residual)
         self.interior = np.flatnonzero(e2t[:, 1] >= 0)
         self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL)
                                     | (self.kind == BoundaryKind.OBSTACLE))
@@ -454,7 +455,12 @@ class FVSolver:
         dQ = np.empty_like(Q)
         if fct:
             FL, alpha = self._FL, self._alpha
-            self._low_order(Q, t, FL, alpha)
+            key, self._lo_key = self._lo_key, None
+            if not (key is not None and key[0] is Q and key[1] == t
+                    and key[2] == float(Q.sum())):
+                self._low_order(Q, t, FL, alpha)
+            # (else max_dt's, of these very cell averages: its wave speeds floored, which
+            # only makes the check below stricter)
             # the flux limiter keeps rho >= 0 only if the first-order stage does: dt within
             # the forward-Euler bound of this stage's wave speeds (which can exceed those of
             # the step start, from which the step was sized)
@@ -491,6 +497,7 @@ class FVSolver:
         self._buffers(Q.shape[1])
         alpha = self._alpha
         self._low_order(Q, t, self._FL, alpha)
+        self._lo_key = (Q, t, float(Q.sum()))  # the first stage of a step from Q reuses them
         floor = float(getattr(self.model, "speed_floor", 0.0))
         if floor > 0:
             np.maximum(alpha, floor, out=alpha)

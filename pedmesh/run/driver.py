@@ -163,6 +163,20 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
         frame += 1
         last_frame_t = t
 
+    # a model that interpolates its frames in time (MacroRun.write_frame_at) steps freely
+    # and gets each frame at k * output_interval; the others land their steps on them
+    dense = bool(getattr(run, "dense_frames", False)) and hasattr(run, "write_frame_at")
+
+    def dense_frames(t: float, final: bool) -> None:
+        nonlocal frame, last_frame_t, next_frame
+        while next_frame <= t + 1e-9:
+            run.write_frame_at(writer, frame, min(next_frame, t))
+            frame += 1
+            last_frame_t = next_frame
+            next_frame = frame * run.output_interval
+        if final and t > last_frame_t + 1e-9:
+            frame_now(t)
+
     def record(final: bool = False) -> None:
         nonlocal next_sample, next_frame
         t = run.t
@@ -171,7 +185,9 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
             k = math.floor((t - next_sample) / run.sample_interval + 1e-9) + 1
             next_sample += run.sample_interval * max(1, k)
         run.record(writer, final=final)
-        if t >= next_frame - 1e-9 or (final and t > last_frame_t + 1e-9):
+        if dense:
+            dense_frames(t, final)
+        elif t >= next_frame - 1e-9 or (final and t > last_frame_t + 1e-9):
             frame_now(t)
             k = math.floor((t - next_frame) / run.output_interval + 1e-9) + 1
             next_frame += run.output_interval * max(1, k)
@@ -179,7 +195,7 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
     record()
     last_bar = 0.0
     while not run.done and run.t < t_end - 1e-9:
-        run.step(min(next_frame, t_end))
+        run.step(t_end if dense else min(next_frame, t_end))
         if run.done or run.t >= t_end - 1e-9:
             break
         record()

@@ -3,7 +3,11 @@
 Every model registered with :func:`pedmesh.run.register_model` returns an object that
 implements it (the social force model's :class:`~pedmesh.run.models.SFMRun`, the continuum
 models' :class:`~pedmesh.macro.run.MacroRun`); the driver checks it with ``isinstance``
-when the model is built and calls nothing outside it.
+when the model is built and calls nothing outside it, except one optional pair: a model
+with a true ``dense_frames`` and a ``write_frame_at(writer, frame, t)`` that can write the
+state at any time ``t`` within its last step is stepped freely and asked for each frame at
+its time (the continuum models interpolate between the step's two states); the others have
+their steps land on the frame times.
 """
 
 from __future__ import annotations

@@ -248,14 +248,15 @@ def test_compare_reruns_when_settings_differ(geometries_dir, tmp_path, capsys):
     assert "room_sha256 differs" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("dense", [0, 1])
 @pytest.mark.parametrize("model", ["rdue", "pw"])
-def test_continuum_frames_at_the_requested_times(geometries_dir, tmp_path, model):
+def test_continuum_frames_at_the_requested_times(geometries_dir, tmp_path, model, dense):
     from pedmesh.io import read_pvd_index
 
     out = tmp_path / model
     assert main(["run", str(geometries_dir / "l_shaped.json"), "--model", model, "--out",
                  str(out), "-q", "--t-end", "4.5", "--param", "output_interval=0.5",
-                 "--max-area", "2"]) == 0
+                 "--param", f"dense_frames={dense}", "--max-area", "2"]) == 0
     times = [t for t, _ in read_pvd_index(out / "density.pvd")]
     assert times == [0.5 * k for k in range(10)]  # exactly, the last one at t_end
     s = json.loads((out / "summary.json").read_text())
@@ -281,3 +282,43 @@ def test_step_limit_lands_exactly_and_never_overshoots(load_shipped):
     for _ in range(5):  # without a limit: the CFL step, as before
         ref.step()
     assert ref.t > 0.37 and abs(ref.remaining + ref.evacuated - ref.n_initial) < 1e-9
+
+
+def test_dense_frames_interpolate_the_states_around_them(geometries_dir, tmp_path):
+    """Interpolated frames: the states at the step's ends at its ends, their convex
+    combination in between (mass linear in t, rho >= 0); and the frames of a free-running
+    run close to those of a run whose steps land on the frame times."""
+    import pyvista as pv
+
+    from pedmesh.io import read_pvd_index
+    from pedmesh.io.rooms import load_room
+    from pedmesh.run.models import MODELS
+
+    room = load_room(geometries_dir / "l_shaped.json")
+    mesh = room.mesh(max_area=2.0)
+    run = MODELS["eos"](room, mesh, {})
+    for _ in range(3):
+        run.step()
+    t0, Q0 = run._prev
+    t1, Q1 = run.t, run.state.Q
+    assert t0 < t1
+    assert np.array_equal(run.state_at(t1), Q1) and np.array_equal(run.state_at(t0), Q0)
+    mid = run.state_at(0.5 * (t0 + t1))
+    assert np.allclose(mid, 0.5 * (Q0 + Q1), rtol=1e-14, atol=1e-300)
+    assert mid[:, 0].min() >= 0.0
+    m0, m1, mm = (run.solver.mass(q) for q in (Q0, Q1, mid))
+    assert abs(mm - 0.5 * (m0 + m1)) < 1e-12 * m0
+    with pytest.raises(ValueError, match="not within the last step"):
+        run.state_at(t0 - 1.0)
+
+    rho = {}
+    for dense in (0, 1):
+        out = tmp_path / f"d{dense}"
+        assert main(["run", str(geometries_dir / "l_shaped.json"), "--model", "eos", "--out",
+                     str(out), "-q", "--t-end", "6", "--param", f"dense_frames={dense}",
+                     "--max-area", "2"]) == 0
+        index = read_pvd_index(out / "density.pvd")
+        assert [t for t, _ in index] == [float(k) for k in range(7)]
+        rho[dense] = [pv.read(f).cell_data["rho"] for _, f in index]
+    for a, b in zip(rho[0], rho[1]):
+        assert np.abs(a - b).max() <= 0.02 * a.max()  # (measured: under 0.7 %)
