@@ -135,10 +135,16 @@ def _fd_samples(res: RunResult, mesh, every: float = 1.0):
 def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, *,
                    t_end: float = 1000.0, quiet: bool = False, geometry: str | None = None,
                    mesh_options: dict | None = None, density_times: Sequence[float] | None = None,
-                   reuse: bool = True, plots: bool = True) -> ComparisonResult:
-    """Run (or reuse) every model, then write plots, comparison.csv and comparison.md."""
+                   reuse: bool = True, plots: bool = True,
+                   preset: str | None = None) -> ComparisonResult:
+    """Run (or reuse) every model, then write plots, comparison.csv and comparison.md.
+    ``preset``: the parameter preset of every run (:mod:`pedmesh.presets`; None: the room
+    file's, else the default)."""
+    from .presets import resolve_preset
     from .run import run_model
     from .run.driver import run_settings
+
+    preset = resolve_preset(preset, room)
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -148,7 +154,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
         d = out / spec.label
         prefix = f"[{k + 1}/{len(specs)}] {spec.label}"
         wanted = run_settings(spec.name, overrides=spec.overrides, t_end=t_end,
-                              geometry=geometry, mesh_options=mesh_options)
+                              geometry=geometry, mesh_options=mesh_options, preset=preset)
         why = "no run there yet"
         if (d / "summary.json").exists():
             res = RunResult.load(d)
@@ -161,7 +167,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
         if not quiet:
             print(f"{prefix}: running ({why})", file=sys.stderr)
         run_model(room, mesh, spec.name, overrides=spec.overrides, t_end=t_end, out_dir=d,
-                  quiet=quiet, geometry=geometry, mesh_options=mesh_options)
+                  quiet=quiet, geometry=geometry, mesh_options=mesh_options, preset=preset)
         runs[spec.label] = RunResult.load(d)
     labels = list(runs)
     ref = runs[labels[0]]

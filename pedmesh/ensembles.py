@@ -328,6 +328,9 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     from .io import load_room
 
     room = load_room(geometry)  # a bad room file fails here, once, not in every member
+    from .presets import resolve_preset
+
+    preset = resolve_preset(preset, room)  # (the room file's, else the default)
     mesh_options = {"max_area": max_area, "min_angle": min_angle, "feature_area": feature_area,
                     "exit_size": exit_size}
     _check_mesh_size(room, mesh_options, max_cells)  # and so does an oversized mesh

@@ -22,6 +22,7 @@ SUBCOMMANDS = {
     "calibrate": "pedmesh.cli.calibrate",
     "ensemble": "pedmesh.cli.ensemble",
     "export": "pedmesh.cli.export",
+    "presets": "pedmesh.cli.presets",
 }
 
 

@@ -25,6 +25,7 @@ smaller by orders of magnitude at low density.
 examples:
   pedmesh calibrate -o eos.json
   pedmesh calibrate --param A=1500 --param B=0.1 -o eos-soft.json
+  pedmesh calibrate --preset weidmann -o eos-weidmann.json
   pedmesh calibrate --densities 1,2,4,8 --replicas 2 -o quick.json
 """
 
@@ -32,6 +33,9 @@ examples:
 def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="a social force parameter (A, B, k, kappa, m, r, tau; repeatable)")
+    p.add_argument("--preset", default=None, metavar="NAME",
+                   help="the social force parameters of this preset (default: paper; see "
+                        "`pedmesh presets`), --param on top")
     p.add_argument("-o", "--out", default="eos.json", metavar="FILE",
                    help="calibration file to write (default: eos.json)")
     p.add_argument("--densities", default=None, metavar="R1,R2,...",
@@ -62,7 +66,10 @@ def run(args: argparse.Namespace) -> int:
     if bad:
         raise ParameterError(f"unknown or irrelevant parameter '{bad[0]}' for a calibration "
                              f"(known: {', '.join(sorted(allowed))})")
-    (params,) = with_overrides(overrides, SocialForceParams())
+    from ..presets import DEFAULT_PRESET, get_preset
+
+    base = get_preset(args.preset or DEFAULT_PRESET).overrides(allowed)
+    (params,) = with_overrides({**base, **overrides}, SocialForceParams())
     opts = {}
     if args.densities:
         try:

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from .mesh import add_mesh_args, mesh_options
+from .presets import add_preset_arg
 
 HELP = "run several models on one room and write comparison plots and tables"
 DESCRIPTION = """\
@@ -30,6 +31,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="comma-separated models, e.g. sfm,mac1,rdue,pw:c0=0.5")
     p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
                    help="stop each run at this simulated time in s (default: 1000)")
+    add_preset_arg(p)
     add_mesh_args(p)
     p.add_argument("--times", default=None, metavar="T1,T2,...",
                    help="times [s] of the density comparison (default: 25/50/75 %% of the "
@@ -63,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             res = run_comparison(room, mesh, specs, out, t_end=args.t_end, quiet=args.quiet,
                                  geometry=str(args.geometry), density_times=times,
                                  mesh_options=mesh_options(args),
-                                 reuse=not args.rerun)
+                                 reuse=not args.rerun, preset=args.preset)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}; finished models are kept and reused next time", file=sys.stderr)
         return 130

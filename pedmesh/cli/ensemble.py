@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from .mesh import add_mesh_args, mesh_options
+from .presets import add_preset_arg
 
 HELP = "run an ensemble or a parameter study on Dask (local cores or a cluster)"
 DESCRIPTION = """\
@@ -55,6 +56,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="worker processes of the local cluster (default: number of cores)")
     p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
                    help="stop each run at this simulated time in s (default: 1000)")
+    add_preset_arg(p)
     add_mesh_args(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
@@ -75,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                       overrides=parse_param_overrides(args.param), sweep=parse_sweep(args.sweep),
                       seed=args.seed, scheduler=args.scheduler, workers=args.workers,
                       t_end=args.t_end, **mesh_options(args), max_cells=args.max_cells,
-                      quiet=args.quiet)
+                      quiet=args.quiet, preset=args.preset)
     except KeyboardInterrupt:
         print(f"pedmesh: ensemble interrupted; finished members are kept in {out}",
               file=sys.stderr)

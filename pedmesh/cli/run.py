@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from .mesh import add_mesh_args, mesh_options
+from .presets import add_preset_arg
 
 HELP = "simulate an evacuation with a model (sfm, ...) and write the results"
 DESCRIPTION = """\
@@ -33,6 +34,7 @@ the error. Parameters are set with --param NAME=VALUE (repeatable); the summary 
 examples:
   pedmesh run geometries/example2.json --model sfm --out runs/ex2-sfm
   pedmesh run geometries/example3.json --model sfm --param dt=0.005 --param A=1500
+  pedmesh run geometries/corridor_bottleneck.json --model rdue --preset weidmann
 """
 
 
@@ -46,6 +48,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="set a model or numerics parameter (repeatable)")
     p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
                    help="stop at this simulated time in s if people remain (default: 1000)")
+    add_preset_arg(p)
     add_mesh_args(p)
     p.add_argument("--out", metavar="DIR", default=None,
                    help="output directory (default: runs/<geometry>-<model>)")
@@ -84,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
             s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
                           quiet=args.quiet, geometry=str(args.geometry),
                           mesh_options=mesh_options(args),
-                          model_options=model_options)
+                          model_options=model_options, preset=args.preset)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}", file=sys.stderr)
         return 130

@@ -366,6 +366,9 @@ class Room:
         Room name.
     description
         Free text.
+    preset
+        The parameter preset runs of this room use unless told otherwise
+        (:mod:`pedmesh.presets`; None: the default).
 
     Raises
     ------
@@ -381,6 +384,7 @@ class Room:
     measurement_areas: tuple[MeasurementArea, ...] = ()
     name: str = "room"
     description: str = ""
+    preset: str | None = None
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -388,6 +392,12 @@ class Room:
             raise GeometryError(f"room name must be a string, got {self.name!r}")
         if not isinstance(self.description, str):
             raise GeometryError(f"room description must be a string, got {self.description!r}")
+        if self.preset is not None:
+            from ..presets import PRESETS
+
+            if not isinstance(self.preset, str) or self.preset not in PRESETS:
+                raise GeometryError(f"unknown preset {self.preset!r} (presets: "
+                                    f"{', '.join(PRESETS)})")
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         set_("outline", _coerce_points(self.outline, "room outline", ring=True))
         set_("obstacles", _coerce_elements(self.obstacles, Obstacle, "obstacle"))

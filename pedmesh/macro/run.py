@@ -65,10 +65,10 @@ def initial_density(room, mesh) -> np.ndarray:
 
 
 #: model parameters that are words, switches (0/1), positive, or >= 0 by their meaning
-_TEXT = {"calibration", "exit"}
+_TEXT = {"calibration", "exit", "speed_law"}
 _SWITCHES = {"walls", "friction", "split_friction"}
 _POSITIVE = {"U_f", "beta", "tau", "rho_cut", "u_max", "A", "B", "k", "kappa", "m", "r",
-             "cutoff", "lr_strength", "lr_length", "gamma1"}
+             "cutoff", "lr_strength", "lr_length", "gamma1", "rho_jam", "gamma_w"}
 _NON_NEGATIVE = {"c0"}
 _OPTIONAL = {"u_max", "gamma1"}  #: None: derived from the other parameters
 
@@ -215,7 +215,7 @@ class MacroRun:
             Q = self.state.Q
         rho = Q[:, 0]
         if self.model.n_vars == 1:  # RDUE: u = U_e(rho) e
-            speed = self.model.U_f * np.exp(-self.model.beta * np.maximum(rho, 0))
+            speed = self.model.speed(rho)
             vel = speed[:, None] * self.solver.e_cell
         else:
             vel = self.model.velocity(Q)

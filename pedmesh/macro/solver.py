@@ -294,8 +294,11 @@ class FVSolver:
         from ..eikonal.direction import DirectionField, _vertex_averaging
 
         rho_v = _vertex_averaging(self.mesh) @ np.maximum(Q[:, 0], 0.0)
-        U_f, beta = self.model.U_f, self.model.beta
-        cost = np.exp(beta * rho_v) / U_f
+        speed = self.model.speed
+        if speed.name == "exponential":
+            cost = np.exp(speed.beta * rho_v) / speed.U_f
+        else:
+            cost = speed.route_cost(rho_v)
         self.phi = self._eikonal.solve(cost)
         df = DirectionField(self.mesh, self.phi)
         m = self.mesh.n_triangles

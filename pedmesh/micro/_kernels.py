@@ -15,6 +15,7 @@ import numba as nb
 import numpy as np
 
 from ..eikonal.direction import _inside_packed, _interpolate
+from ..speed import shape
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
 #: barycentric margin of the division-free "still inside its triangle" test; anything
@@ -353,11 +354,12 @@ def follow(points, triangles, nbr, tri, x, n, P):
 @nb.njit(cache=True)
 def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-          rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, beta,
+          rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, law,
           const_u, use_const, F, rho, e, with_density):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
     desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
-    else as they are)."""
+    else as they are; U_e = U_f g(rho) with g the speed law array ``law``, see
+    :mod:`pedmesh.speed`)."""
     pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, 2.0 * r, A, B, k, kappa, m,
                     R, F, rho, with_density)
     wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
@@ -371,7 +373,7 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     follow(points, triangles, nbr, tri, x, n, dpack)
     _interpolate(dpack, tri[:n], x[:n], e)
     for i in range(n):
-        ue = U_f * math.exp(-beta * rho[i])
+        ue = U_f * shape(law, rho[i])
         F[i, 0] += (ue * e[i, 0] - v[i, 0]) * inv_tau
         F[i, 1] += (ue * e[i, 1] - v[i, 1]) * inv_tau
 
@@ -469,7 +471,7 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
 def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-             rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, beta,
+             rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, law,
              const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
@@ -493,7 +495,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, every)
+          m, R, tau, U_f, law, const_u, use_const, F, rho, e, every)
     for i in range(n):
         rho_out[i] = rho[i]
         for d in range(2):
@@ -507,7 +509,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, every)
+          m, R, tau, U_f, law, const_u, use_const, F, rho, e, every)
     for i in range(n):
         for d in range(2):
             x1 = xs[i, d]
@@ -522,7 +524,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, beta, const_u, use_const, F, rho, e, every)
+          m, R, tau, U_f, law, const_u, use_const, F, rho, e, every)
     for i in range(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])

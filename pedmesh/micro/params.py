@@ -31,15 +31,27 @@ class SocialForceParams:
     r: float = 0.15  #: body radius [m], r_i (so r_ij = 2 r = 0.3 m)
     k: float = 1.2e5  #: body (contact) force constant [kg/s^2], k
     kappa: float = 2.4e5  #: sliding friction constant [kg/(m s)], kappa
+    #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`): 'exponential' (the paper's,
+    #: U_f exp(-beta rho)) or 'weidmann' (U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam))))
+    speed_law: str = "exponential"
+    rho_jam: float = 5.4  #: jam density [ped/m^2] of the Weidmann law
+    gamma_w: float = 1.913  #: [ped/m^2] of the Weidmann law
 
     def __post_init__(self) -> None:
-        _check_positive(self)
+        _check_positive(self, skip=("speed_law",))
+        self.speed  # (checks the law's name)
+
+    @property
+    def speed(self):
+        """The desired-speed law (:class:`pedmesh.speed.SpeedLaw`)."""
+        from ..speed import SpeedLaw
+
+        return SpeedLaw(self.speed_law, self.U_f, self.beta, self.rho_jam, self.gamma_w)
 
     def desired_speed(self, rho):
-        """U_e(rho) = U_f exp(-beta rho) [m/s] (paper eq_desired_speed)."""
-        import numpy as np
-
-        return self.U_f * np.exp(-self.beta * np.asarray(rho))
+        """U_e(rho) [m/s] (paper eq_desired_speed: U_f exp(-beta rho) with the exponential
+        law)."""
+        return self.speed(rho)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -93,8 +105,10 @@ class SFMNumerics:
                                      f"got {getattr(self, name)!r}")
 
 
-def _check_positive(obj: Any) -> None:
+def _check_positive(obj: Any, skip: tuple[str, ...] = ()) -> None:
     for f in fields(obj):
+        if f.name in skip:
+            continue
         v = getattr(obj, f.name)
         if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
             raise ParameterError(f"parameter '{f.name}' must be a finite number, got {v!r}")
@@ -103,7 +117,7 @@ def _check_positive(obj: Any) -> None:
 
 
 #: parameters whose values are words, not numbers
-TEXT_PARAMS = {"exit", "calibration"}
+TEXT_PARAMS = {"exit", "calibration", "speed_law"}
 #: switches: 0/1 or false/true on the command line (read as 0.0/1.0)
 BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction"}
 _BOOL_WORDS = {"0": 0.0, "1": 1.0, "false": 0.0, "true": 1.0}

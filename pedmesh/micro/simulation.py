@@ -161,6 +161,7 @@ class Simulation:
         self._cell_start = np.zeros(self._cnx * self._cny + 1, np.int64)
         self._cell_order = np.zeros(N, np.int64)
         self.walls = WallSet.from_mesh(mesh, self.rc_w)
+        self._law = self.params.speed.array  # the desired-speed law (pedmesh.speed)
         # routes
         self.reroute = bool(reroute)
         if desired_velocity is not None:
@@ -229,7 +230,7 @@ class Simulation:
         t0 = time.perf_counter()
         if self.reroute or self.steps == 0:
             rho_v = self.vertex_density()
-            cost = 1.0 / self.params.desired_speed(rho_v)
+            cost = self.params.speed.route_cost(rho_v)
             self.phi = self._solver.solve(cost)
             field_ = DirectionField(self.mesh, self.phi)
             self._dpack = field_.packed
@@ -249,7 +250,7 @@ class Simulation:
             self._cell_start, self._cell_order, self._cx0, self._cy0, self._cinv,
             self._cnx, self._cny, w.piece, w.next_seg, w.x0, w.y0,
             w.inv_cell, w.nx, w.ny, w.cell_ptr, w.cell_seg, self.rc_f, self.rc_d, self.rc_w,
-            p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, p.U_f, p.beta, self._const_u,
+            p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, p.U_f, self._law, self._const_u,
             self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho, self._e,
             self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
         )

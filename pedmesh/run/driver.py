@@ -74,8 +74,15 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
         raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a positive number of seconds, got {t_end!r}")
+    from ..presets import preset_overrides, resolve_preset
+    from .models import model_parameters
+
     name, factory = get_model(model)
     overrides = dict(overrides or {})
+    # the parameters: the preset's (asked for, else the room file's, else the default) with
+    # the overrides on top; the settings record the preset's name and the overrides
+    preset = resolve_preset(preset, room)
+    parameters = preset_overrides(preset, model_parameters(name), overrides)
     model_options = dict(model_options or {})
     t_wall0 = time.perf_counter()
     out = Path(out_dir)
@@ -96,7 +103,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     frame = 0
     status, error = "failed", None
     try:
-        run = factory(room, mesh, overrides, **model_options)
+        run = factory(room, mesh, parameters, **model_options)
         if not isinstance(run, RunModel):
             raise TypeError(f"model '{name}' does not implement pedmesh.run.protocol.RunModel")
         extra: dict[str, Any] = {"parameters": run.parameters()}

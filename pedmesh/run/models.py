@@ -11,17 +11,28 @@ import numpy as np
 from ..errors import ParameterError
 from .output import RunWriter, evacuation_times
 
-__all__ = ["MODELS", "register_model", "get_model", "SFMRun"]
+__all__ = ["MODELS", "register_model", "get_model", "model_parameters", "SFMRun"]
 
 MODELS: dict[str, Callable[..., Any]] = {}
 ALIASES: dict[str, str] = {}
+#: the physical parameters each model has (what a preset may set)
+PARAMETERS: dict[str, frozenset[str]] = {}
 
 
-def register_model(name: str, factory: Callable[..., Any], aliases: tuple[str, ...] = ()) -> None:
-    """Register a model adapter factory under ``name`` (and aliases)."""
+def register_model(name: str, factory: Callable[..., Any], aliases: tuple[str, ...] = (),
+                   parameters: set[str] | None = None) -> None:
+    """Register a model adapter factory under ``name`` (and aliases), with the names of its
+    physical parameters (those a preset may set; see :mod:`pedmesh.presets`)."""
     MODELS[name] = factory
+    PARAMETERS[name] = frozenset(parameters or ())
     for a in aliases:
         ALIASES[a] = name
+
+
+def model_parameters(name: str) -> frozenset[str]:
+    """The physical parameters of model ``name`` (an alias works too)."""
+    key, _ = get_model(name)
+    return PARAMETERS[key]
 
 
 def get_model(name: str) -> tuple[str, Callable[..., Any]]:
@@ -218,7 +229,16 @@ def _sfm_factory(room, mesh, overrides, **kw):
     return SFMRun(room, mesh, overrides, **kw)
 
 
-register_model("sfm", _sfm_factory, aliases=("sf", "sf1", "social-force"))
+def _sfm_parameters() -> set[str]:
+    from dataclasses import fields
+
+    from ..micro.params import SocialForceParams
+
+    return {f.name for f in fields(SocialForceParams)}
+
+
+register_model("sfm", _sfm_factory, aliases=("sf", "sf1", "social-force"),
+               parameters=_sfm_parameters())
 
 
 def _macro_factory(model: str, params: set[str]):
@@ -227,18 +247,22 @@ def _macro_factory(model: str, params: set[str]):
 
         return MacroRun(room, mesh, overrides, model=model, model_params=params, **kw)
 
+    factory.parameters = set(params)
     return factory
 
 
-register_model("pw", _macro_factory("pw", {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}),
-               aliases=("payne-whitham",))
-register_model("rdue", _macro_factory("rdue", {"U_f", "beta"}), aliases=("hughes",))
-_BASE = {"U_f", "beta", "tau", "rho_cut", "u_max"}
+def _register_macro(name: str, params: set[str], aliases: tuple[str, ...] = ()) -> None:
+    register_model(name, _macro_factory(name, params), aliases=aliases, parameters=params)
+
+
+#: the desired-speed law (pedmesh.speed) besides U_f and beta
+SPEED_KEYS = {"speed_law", "rho_jam", "gamma_w"}
+_register_macro("pw", {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"} | SPEED_KEYS,
+                aliases=("payne-whitham",))
+_register_macro("rdue", {"U_f", "beta"} | SPEED_KEYS, aliases=("hughes",))
+_BASE = {"U_f", "beta", "tau", "rho_cut", "u_max"} | SPEED_KEYS
 _SFM = {"A", "B", "k", "kappa", "m", "r"}
-register_model("mac1", _macro_factory("mac1", _BASE | _SFM | {"walls", "friction", "cutoff",
-                                                           "split_friction"}))
+_register_macro("mac1", _BASE | _SFM | {"walls", "friction", "cutoff", "split_friction"})
 for _name in ("mac2-local", "mac2-local-friction", "mac2-nonlocal", "mac2-nonlocal-friction"):
-    register_model(_name,
-                   _macro_factory(_name, _BASE | _SFM | {"lr_strength", "lr_length", "gamma1"}))
-register_model("eos", _macro_factory("eos", _BASE | _SFM | {"calibration"}),
-               aliases=("calibrated",))
+    _register_macro(_name, _BASE | _SFM | {"lr_strength", "lr_length", "gamma1"})
+_register_macro("eos", _BASE | _SFM | {"calibration"}, aliases=("calibrated",))

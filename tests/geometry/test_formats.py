@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -49,6 +50,8 @@ def test_other_formats_round_trip(suffix, load_shipped, tmp_path):
     for name in JSON_FILES:
         room = load_shipped(name)
         again = load_room(save_room(room, tmp_path / (name + suffix)))
+        if suffix == ".dxf":  # (a DXF drawing carries no parameter preset)
+            room = dataclasses.replace(room, preset=None)
         assert again == room, name
 
 

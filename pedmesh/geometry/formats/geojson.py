@@ -3,7 +3,7 @@
 =================  ============  =======================================================
 role               geometry      other properties
 =================  ============  =======================================================
-room               Polygon       name, description (interior rings become obstacles)
+room               Polygon       name, description, preset (interior rings become obstacles)
 obstacle           Polygon       name
 exit               LineString    name
 start              Polygon       name and one of count, spacing [m], density [ped/m^2]
@@ -31,7 +31,7 @@ __all__ = ["read_geojson", "write_geojson", "room_to_geojson", "room_from_geojso
 
 _ROLES = {
     # role: (native list key or None for the room, geometry type, coordinate key, extra props)
-    "room": (None, "Polygon", "outline", ("description",)),
+    "room": (None, "Polygon", "outline", ("description", "preset")),
     "obstacle": ("obstacles", "Polygon", "polygon", ()),
     "exit": ("exits", "LineString", "polyline", ()),
     "start": ("start_areas", "Polygon", "polygon", ("count", "spacing", "density")),
@@ -86,8 +86,9 @@ def room_from_geojson(data: Any, source: str = "geojson") -> Room:
             native["outline"] = exterior
             if isinstance(name, str):
                 native["name"] = name
-            if "description" in props:
-                native["description"] = props["description"]
+            for k in ("description", "preset"):
+                if k in props:
+                    native[k] = props[k]
             for k, hole in enumerate(holes):
                 native.setdefault("obstacles", []).append(
                     {"name": f"hole-{k + 1}", "polygon": hole}
@@ -119,6 +120,8 @@ def room_to_geojson(room: Room) -> dict[str, Any]:
     room_props: dict[str, Any] = {"name": room.name}
     if room.description:
         room_props["description"] = room.description
+    if room.preset is not None:
+        room_props["preset"] = room.preset
     feats = [feature("room", "Polygon", d["outline"], room_props)]
     for role, (key, gtype, coord_key, extra) in _ROLES.items():
         if key is None:

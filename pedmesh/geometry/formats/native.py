@@ -8,6 +8,7 @@ Schema (keys not listed are an error)::
       "name": "example2",                # optional
       "description": "free text",        # optional
       "units": "m",                      # optional; only "m" is accepted
+      "preset": "paper",                 # optional: the parameter preset of its runs
       "outline": [[x, y], ...],          # required: outer wall polygon
       "obstacles": [{"name": "pillar", "polygon": [[x, y], ...]}],
       "exits": [{"name": "door", "polyline": [[x, y], [x, y], ...]}],
@@ -45,7 +46,7 @@ FORMAT_VERSION = 1
 
 _TOP_KEYS = {
     "format", "version", "name", "description", "units", "outline", "obstacles", "exits",
-    "start_areas", "measurement_lines", "measurement_areas",
+    "start_areas", "measurement_lines", "measurement_areas", "preset",
 }
 # list key -> (element class, label, coordinate key, optional keys)
 _ELEMENTS: dict[str, tuple[type, str, str, tuple[str, ...]]] = {
@@ -78,7 +79,7 @@ def room_from_dict(data: Any, source: str = "room") -> Room:
     if "outline" not in data:
         raise RoomFileError(f"{source}: missing required key 'outline' (the room's wall polygon)")
     kwargs: dict[str, Any] = {"outline": data["outline"]}
-    for key in ("name", "description"):
+    for key in ("name", "description", "preset"):
         if key in data:
             kwargs[key] = data[key]
     for key, (cls, label, coord_key, optional) in _ELEMENTS.items():
@@ -113,6 +114,8 @@ def room_to_dict(room: Room) -> dict[str, Any]:
     out: dict[str, Any] = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "name": room.name}
     if room.description:
         out["description"] = room.description
+    if room.preset is not None:
+        out["preset"] = room.preset
     out["units"] = "m"
     out["outline"] = [list(p) for p in room.outline]
     for key, (cls, label, coord_key, optional) in _ELEMENTS.items():

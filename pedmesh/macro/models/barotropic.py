@@ -32,6 +32,7 @@ import numpy as np
 from ...errors import ParameterError
 from .._kernels import BLOCK, FAST, NCHUNK, PAR
 from .base import MacroModel, register_macro_model
+from ...speed import SpeedLaw, shape
 
 __all__ = ["BarotropicModel", "PressureLaw", "PayneWhitham"]
 
@@ -370,25 +371,26 @@ def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
 
 
 @nb.njit(**FAST, inline="always")
-def _relax_point(q, ex, ey, U_f, beta, rho_cut, umax):
-    """tau times the relaxation rho (U_e(rho) e - u)/tau of the state (3,) ``q``."""
+def _relax_point(q, ex, ey, U_f, law, rho_cut, umax):
+    """tau times the relaxation rho (U_e(rho) e - u)/tau of the state (3,) ``q`` (speed
+    law array ``law``, see :mod:`pedmesh.speed`)."""
     r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
-    ue = U_f * math.exp(-beta * r)
+    ue = U_f * shape(law, r)
     return r * (ue * ex - ux), r * (ue * ey - uy)
 
 
 @nb.njit(**PAR)
-def relaxation(q, ex, ey, U_f, beta, tau, rho_cut, umax, S):
+def relaxation(q, ex, ey, U_f, law, tau, rho_cut, umax, S):
     """rho (U_e(rho) e - u)/tau at k points."""
     for k in nb.prange(q.shape[0]):
-        s1, s2 = _relax_point(q[k], ex[k], ey[k], U_f, beta, rho_cut, umax)
+        s1, s2 = _relax_point(q[k], ex[k], ey[k], U_f, law, rho_cut, umax)
         S[k, 0] = 0.0
         S[k, 1] = s1 / tau
         S[k, 2] = s2 / tau
 
 
 @nb.njit(**PAR)
-def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ, cact):
+def relaxation_mean(Vi, ex, ey, U_f, law, tau, rho_cut, umax, dQ, cact):
     """dQ[i] += the mean of the relaxation at the 3 interior points of cell i (states
     ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,)), for the active cells ``cact``."""
     c = 1.0 / (3.0 * tau)
@@ -400,7 +402,7 @@ def relaxation_mean(Vi, ex, ey, U_f, beta, tau, rho_cut, umax, dQ, cact):
                     continue
                 s1 = s2 = 0.0
                 for p in range(3):
-                    a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, beta,
+                    a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, law,
                                           rho_cut, umax)
                     s1 += a1
                     s2 += a2
@@ -441,10 +443,14 @@ class BarotropicModel(MacroModel):
 
     def __init__(self, name: str, law: PressureLaw, *, U_f: float = 1.034, beta: float = 0.05,
                  tau: float = 0.5, rho_cut: float = 1e-3, u_max: float | None = None,
-                 default_exit: str | None = None) -> None:
+                 default_exit: str | None = None, speed_law: str = "exponential",
+                 rho_jam: float = 5.4, gamma_w: float = 1.913) -> None:
         for k, v in (("U_f", U_f), ("beta", beta), ("tau", tau), ("rho_cut", rho_cut)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
+        #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
+        self.speed = SpeedLaw(speed_law, float(U_f), float(beta), float(rho_jam), float(gamma_w))
+        self._law = self.speed.array
         self.name = name
         self.law = law
         #: no pressure (momentum flux rho u (x) u only): the flux limiter then also keeps the
@@ -521,7 +527,7 @@ class BarotropicModel(MacroModel):
     def source_mean(self, Vi, ex, ey, dQ, cact):
         """Adds to ``dQ`` (m, 3) the mean of :meth:`source` at each active (``cact``) cell's
         3 interior points (states ``Vi`` (m, 3, 3), directions (3 m,))."""
-        relaxation_mean(Vi, ex, ey, self.U_f, self.beta, self.tau, self.rho_vac, self.u_max,
+        relaxation_mean(Vi, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max,
                         dQ, cact)
 
     def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha, live):
@@ -557,7 +563,7 @@ class BarotropicModel(MacroModel):
 
     def source(self, q, ex, ey):
         S = np.empty_like(q)
-        relaxation(q, ex, ey, self.U_f, self.beta, self.tau, self.rho_vac, self.u_max, S)
+        relaxation(q, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max, S)
         return S
 
     def velocity(self, q):
@@ -576,7 +582,7 @@ class BarotropicModel(MacroModel):
         return 0.5 * self.tau
 
     def parameters(self) -> dict:
-        return {"U_f": self.U_f, "beta": self.beta, "tau": self.tau, "rho_cut": self.rho_cut,
+        return {**self.speed.parameters(), "tau": self.tau, "rho_cut": self.rho_cut,
                 "u_max": self.u_max}
 
 

@@ -1,34 +1,35 @@
-"""RDUE / Hughes: ``rho_t + div(rho U_e(rho) e) = 0`` with ``U_e = U_f exp(-beta rho)`` and e
-from the eikonal equation with cost 1/U_e(rho) (reactive dynamic user equilibrium).
+"""RDUE / Hughes: ``rho_t + div(rho U_e(rho) e) = 0`` with the desired speed ``U_e`` of the
+speed law (:mod:`pedmesh.speed`; the paper's ``U_f exp(-beta rho)`` by default) and e from the
+eikonal equation with cost 1/U_e(rho) (reactive dynamic user equilibrium).
 
-Flux at a point with normal n: ``f(rho) (e.n)``, ``f(rho) = rho U_f exp(-beta rho)``;
-Rusanov with ``alpha = max |f'(rho)| |e.n|``, ``f'(rho) = U_f (1 - beta rho) exp(-beta rho)``.
-Walls pass nothing. Exits (default ``demand``): the Godunov flux into empty space,
-``f(min(rho, rho*)) (e.n)_+`` with ``rho* = 1/beta``, so a saturated exit of width w passes
-its capacity ``w U_f / (e beta)``; ``vacuum`` (Rusanov against 0) and ``transmissive``
+Flux at a point with normal n: ``f(rho) (e.n)``, ``f(rho) = rho U_e(rho)``; Rusanov with
+``alpha = max |f'(rho)| |e.n|`` (exponential law: ``f'(rho) = U_f (1 - beta rho) exp(-beta
+rho)``). Walls pass nothing. Exits (default ``demand``): the Godunov flux into empty space,
+``f(min(rho, rho*)) (e.n)_+`` with ``rho*`` the density of the largest flow (1/beta for the
+exponential law), so a saturated exit of width w passes its capacity ``w f(rho*)``
+(``w U_f / (e beta)``); ``vacuum`` (Rusanov against 0) and ``transmissive``
 (``f(rho) (e.n)_+``) are the alternatives.
 """
 
 from __future__ import annotations
-
-import math
 
 import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
 from .._kernels import BLOCK, FAST, NCHUNK, PAR
+from ...speed import SpeedLaw, flux_and_slope
 from .base import MacroModel, register_macro_model
 
 __all__ = ["RDUE"]
 
 
 @nb.njit(**FAST, inline="always")
-def _f_df(r, U_f, beta):
-    """f(rho) = rho U_e(rho) and |f'(rho)| at rho = max(r, 0)."""
+def _f_df(r, U_f, law):
+    """rho = max(r, 0), f(rho) = rho U_e(rho) and |f'(rho)| (speed law array ``law``)."""
     r = max(r, 0.0)
-    e = math.exp(-beta * r)
-    return r, r * U_f * e, abs(U_f * (1 - beta * r) * e)
+    f, d = flux_and_slope(law, U_f, r)
+    return r, f, d
 
 
 @nb.njit(**FAST, inline="always")
@@ -40,15 +41,15 @@ def _rusanov_en(rl, fl, dl, rr, fr, dr, en):
 
 
 @nb.njit(**PAR)
-def _rusanov(qL, qR, en, U_f, beta, F, alpha):
+def _rusanov(qL, qR, en, U_f, law, F, alpha):
     for k in nb.prange(qL.shape[0]):
-        rl, fl, dl = _f_df(qL[k, 0], U_f, beta)
-        rr, fr, dr = _f_df(qR[k, 0], U_f, beta)
+        rl, fl, dl = _f_df(qL[k, 0], U_f, law)
+        rr, fr, dr = _f_df(qR[k, 0], U_f, law)
         F[k, 0], alpha[k] = _rusanov_en(rl, fl, dl, rr, fr, dr, en[k])
 
 
 @nb.njit(**PAR)
-def _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, U_f, beta, F, live):
+def _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, U_f, law, F, live):
     """Rusanov fluxes at the 2 Gauss points of each of ``edges`` (states (k, 2, 1), unit
     normals (k,), directions (2 k,)), integrated over the edge into ``F[e]`` (0 where not
     ``live``)."""
@@ -62,8 +63,8 @@ def _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, U_f, beta, F, live):
                     continue
                 s = 0.0
                 for g in range(2):
-                    rl, fl, dl = _f_df(qL[a, g, 0], U_f, beta)
-                    rr, fr, dr = _f_df(qR[a, g, 0], U_f, beta)
+                    rl, fl, dl = _f_df(qL[a, g, 0], U_f, law)
+                    rr, fr, dr = _f_df(qR[a, g, 0], U_f, law)
                     en = ex[2 * a + g] * nx[a] + ey[2 * a + g] * ny[a]
                     f, _ = _rusanov_en(rl, fl, dl, rr, fr, dr, en)
                     s += f
@@ -71,7 +72,7 @@ def _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, U_f, beta, F, live):
 
 
 @nb.njit(**PAR)
-def _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, U_f, beta, F, alpha, live):
+def _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, U_f, law, F, alpha, live):
     """First-order fluxes of interior ``edges`` from their two cells' averages (read in
     place; f and f' once per edge, the direction at both Gauss points), integrated over the
     edge into ``F[e]``, and the larger wave speed of the two points into ``alpha[e]`` (0
@@ -84,8 +85,8 @@ def _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, U_f, beta, F, alpha, 
                 if not live[e]:
                     F[e, 0] = alpha[e] = 0.0
                     continue
-                rl, fl, dl = _f_df(Q[e2t[e, 0], 0], U_f, beta)
-                rr, fr, dr = _f_df(Q[e2t[e, 1], 0], U_f, beta)
+                rl, fl, dl = _f_df(Q[e2t[e, 0], 0], U_f, law)
+                rr, fr, dr = _f_df(Q[e2t[e, 1], 0], U_f, law)
                 f0, a0 = _rusanov_en(rl, fl, dl, rr, fr, dr, ex[2 * a] * nx[a] + ey[2 * a] * ny[a])
                 f1, a1 = _rusanov_en(rl, fl, dl, rr, fr, dr,
                                      ex[2 * a + 1] * nx[a] + ey[2 * a + 1] * ny[a])
@@ -103,30 +104,40 @@ class RDUE(MacroModel):
     default_cfl = 0.9
     exit_conditions = ("demand", "vacuum", "transmissive")
 
-    def __init__(self, *, U_f: float = 1.034, beta: float = 0.05) -> None:
+    def __init__(self, *, U_f: float = 1.034, beta: float = 0.05,
+                 speed_law: str = "exponential", rho_jam: float = 5.4,
+                 gamma_w: float = 1.913) -> None:
         for k, v in (("U_f", U_f), ("beta", beta)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
         self.U_f, self.beta = float(U_f), float(beta)
+        #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
+        self.speed = SpeedLaw(speed_law, self.U_f, self.beta, float(rho_jam), float(gamma_w))
+        self._law = self.speed.array
+        #: [ped/m^2] the density of the largest flow (the exits' demand)
+        self.rho_star = self.speed.capacity_density
 
     def f(self, rho):
-        return rho * self.U_f * np.exp(-self.beta * rho)
+        """f(rho) = rho U_e(rho) [ped/(m s)]."""
+        if self.speed.name == "exponential":
+            return rho * self.U_f * np.exp(-self.beta * rho)
+        return self.speed.flow(rho)
 
     def flux(self, qL, qR, nx, ny, ex, ey):
         F = np.empty_like(qL)
         a = np.empty(len(qL))
-        _rusanov(qL, qR, ex * nx + ey * ny, self.U_f, self.beta, F, a)
+        _rusanov(qL, qR, ex * nx + ey * ny, self.U_f, self._law, F, a)
         return F, a
 
     def edge_flux(self, qL, qR, nx, ny, ex, ey, edges, lengths, F, live):
         """:meth:`flux` at the 2 Gauss points of ``edges``, integrated into ``F`` in one pass
         (see :class:`~pedmesh.macro.models.base.MacroModel`)."""
-        _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, self.U_f, self.beta, F, live)
+        _rusanov_edges(qL, qR, nx, ny, ex, ey, edges, lengths, self.U_f, self._law, F, live)
 
     def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha, live):
         """First-order fluxes of interior ``edges`` from the cell averages ``Q`` in one pass
         (see :class:`~pedmesh.macro.models.base.MacroModel`)."""
-        _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, self.U_f, self.beta, F, alpha,
+        _rusanov_cells(Q, e2t, edges, nx, ny, ex, ey, lengths, self.U_f, self._law, F, alpha,
                        live)
 
     def wall_flux(self, q, nx, ny, ex, ey):
@@ -136,7 +147,7 @@ class RDUE(MacroModel):
         en = ex * nx + ey * ny
         r = np.maximum(q[:, 0], 0.0)
         if kind == "demand":
-            return (self.f(np.minimum(r, 1.0 / self.beta)) * np.maximum(en, 0.0))[:, None]
+            return (self.f(np.minimum(r, self.rho_star)) * np.maximum(en, 0.0))[:, None]
         if kind == "transmissive":
             return (self.f(r) * np.maximum(en, 0.0))[:, None]
         if kind == "vacuum":
@@ -148,7 +159,7 @@ class RDUE(MacroModel):
         return np.zeros((len(q), 2))  # filled by the solver from U_e e
 
     def parameters(self) -> dict:
-        return {"U_f": self.U_f, "beta": self.beta}
+        return self.speed.parameters()
 
 
 register_macro_model("rdue", RDUE)

@@ -1,0 +1,111 @@
+"""Parameter presets: named sets of model parameters, each value with its unit and source.
+
+A run takes its parameters from, in order of precedence: ``--param NAME=VALUE`` overrides,
+then the preset (``--preset NAME``, ``preset=`` in the Python API, or the room file's
+``"preset"``), then the model's own defaults. A preset sets only the parameters a model
+has (the continuum models take the speed law and the relaxation time, the social force
+model everything).
+
+* ``paper``: Table 1 of the paper, exactly: the paper's examples, ``reproduce_paper.py`` and
+  the comparisons with the paper use it. It is the model defaults, so it reproduces every
+  result made before presets existed.
+* ``weidmann``: the paper's social force model with the desired speed of Weidmann's
+  fundamental diagram (free speed 1.34 m/s, jam density 5.4 /m^2). Literature values, not
+  fitted to experiments.
+
+``pedmesh presets`` lists them with values, units and sources.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from .errors import ParameterError
+
+__all__ = ["Preset", "PRESETS", "DEFAULT_PRESET", "get_preset", "preset_overrides",
+           "resolve_preset"]
+
+TABLE1 = "paper, Table 1"
+WEIDMANN = "Weidmann (1993), Transporttechnik der Fussgaenger, ETH Zurich (RiMEA 4.1.1)"
+
+
+@dataclass(frozen=True)
+class Value:
+    """One preset value: the value, its SI unit and where it comes from."""
+
+    value: float | str
+    unit: str
+    source: str
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A named parameter set (see the module docstring)."""
+
+    name: str
+    description: str
+    values: dict[str, Value] = field(default_factory=dict)
+
+    def overrides(self, accepted: set[str] | None = None) -> dict[str, float | str]:
+        """The values as ``--param`` overrides, only those in ``accepted`` (if given)."""
+        return {k: v.value for k, v in self.values.items()
+                if accepted is None or k in accepted}
+
+
+_PAPER_VALUES = {
+    "speed_law": Value("exponential", "", TABLE1 + ": U_e = U_f exp(-beta rho)"),
+    "U_f": Value(1.034, "m/s", TABLE1),
+    "beta": Value(0.05, "m^2/ped", TABLE1),
+    "tau": Value(0.5, "s", TABLE1),
+    "m": Value(60.0, "kg", TABLE1),
+    "r": Value(0.15, "m", TABLE1),
+    "R": Value(0.7, "m", TABLE1),
+    "A": Value(2000.0, "N", TABLE1),
+    "B": Value(0.08, "m", TABLE1),
+    "k": Value(1.2e5, "kg/s^2", TABLE1),
+    "kappa": Value(2.4e5, "kg/(m s)", TABLE1),
+}
+
+PRESETS: dict[str, Preset] = {
+    "paper": Preset(
+        "paper", "the paper's Table 1, exactly (the model defaults; the paper's examples "
+                 "name it)", dict(_PAPER_VALUES)),
+    "weidmann": Preset(
+        "weidmann", "Table 1 with the desired speed of Weidmann's fundamental diagram "
+                    "(literature values, not fitted)",
+        {**{k: v for k, v in _PAPER_VALUES.items() if k != "beta"},
+         "speed_law": Value("weidmann", "",
+                            WEIDMANN + ": U_e = U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam)))"),
+         "U_f": Value(1.34, "m/s", WEIDMANN),
+         "rho_jam": Value(5.4, "ped/m^2", WEIDMANN),
+         "gamma_w": Value(1.913, "ped/m^2", WEIDMANN)}),
+}
+
+#: the preset of a run that names none (neither the command nor the room file)
+DEFAULT_PRESET = "paper"
+
+
+def get_preset(name: str) -> Preset:
+    """The preset called ``name``; a one-line error naming the known ones otherwise."""
+    if not isinstance(name, str) or name not in PRESETS:
+        raise ParameterError(f"unknown preset {name!r} (presets: {', '.join(PRESETS)})")
+    return PRESETS[name]
+
+
+def resolve_preset(explicit: str | None, room: Any = None) -> str:
+    """The preset a run uses: the one asked for, else the room file's, else the default."""
+    name = explicit if explicit is not None else getattr(room, "preset", None)
+    name = DEFAULT_PRESET if name is None else name
+    get_preset(name)
+    return name
+
+
+def preset_overrides(name: str, accepted: set[str] | frozenset[str],
+                     overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The parameters of a model with the parameters ``accepted`` (e.g.
+    :func:`pedmesh.run.models.model_parameters`) under preset ``name``: the preset's values
+    for those, then ``overrides`` on top."""
+    out = get_preset(name).overrides(set(accepted))
+    out.update(overrides or {})
+    return out

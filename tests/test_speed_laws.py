@@ -1,0 +1,100 @@
+"""Desired-speed laws (pedmesh.speed): values, the compiled kernels against the numpy
+formulas, the capacity, errors, and the laws reaching every model."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pedmesh.errors import ParameterError
+from pedmesh.speed import SpeedLaw, flux_and_slope, shape
+
+
+def test_weidmann_values():
+    w = SpeedLaw("weidmann", U_f=1.34)
+    # Weidmann (1993): v(rho) = 1.34 (1 - exp(-1.913 (1/rho - 1/5.4)))
+    for rho, v in ((1.0, 1.34 * (1 - math.exp(-1.913 * (1 - 1 / 5.4)))),
+                   (3.0, 1.34 * (1 - math.exp(-1.913 * (1 / 3 - 1 / 5.4))))):
+        assert w(rho) == pytest.approx(v, rel=1e-14)
+    assert w(0.0) == 1.34 and w(5.4) == 0.0 and w(7.0) == 0.0
+    assert 0.30 < float(w(3.0)) < 0.35  # the published curve: 0.33 m/s at 3 /m^2
+    assert np.all(np.diff(w(np.linspace(0, 6, 200))) <= 0)  # never faster when denser
+    # the largest flow of Weidmann's diagram: about 1.2 /(m s) near 1.75 /m^2
+    assert 1.6 < w.capacity_density < 2.0 and 1.15 < w.capacity < 1.3
+
+
+def test_exponential_is_the_papers_law():
+    e = SpeedLaw()
+    rho = np.linspace(0, 8, 50)
+    assert np.array_equal(e(rho), 1.034 * np.exp(-0.05 * rho))
+    assert e.capacity_density == 20.0
+    assert e.capacity == pytest.approx(1.034 * 20 * math.exp(-1))
+
+
+@pytest.mark.parametrize("law", [SpeedLaw(), SpeedLaw("weidmann", U_f=1.34),
+                                 SpeedLaw("weidmann", U_f=1.2, rho_jam=6.0, gamma_w=1.5)])
+def test_kernels_match_the_formulas(law):
+    a = law.array
+    rho = np.concatenate([[0.0, 1e-9, 1e-3], np.linspace(0.05, 8.0, 157)])
+    g = np.array([shape(a, r) for r in rho])
+    assert np.allclose(g, law.shape(rho), rtol=1e-13, atol=1e-15)
+    fd = np.array([flux_and_slope(a, law.U_f, r) for r in rho])
+    assert np.allclose(fd[:, 0], law.flow(rho), rtol=1e-13, atol=1e-15)
+    # |f'| against centred differences where f is smooth (away from 0 and rho_jam)
+    h = 1e-6
+    inner = (rho > 1e-2) & (np.abs(rho - law.rho_jam) > 1e-3)
+    num = (law.flow(rho + h) - law.flow(rho - h)) / (2 * h)
+    assert np.allclose(fd[inner, 1], np.abs(num[inner]), rtol=1e-6, atol=1e-8)
+
+
+def test_route_cost_is_finite_in_a_jam():
+    w = SpeedLaw("weidmann", U_f=1.34)
+    c = w.route_cost(np.array([0.0, 2.0, 5.4, 9.0]))
+    assert np.all(np.isfinite(c)) and c[0] == pytest.approx(1 / 1.34)
+    assert c[2] == c[3] == pytest.approx(1 / (0.05 * 1.34))
+
+
+@pytest.mark.parametrize("kw, match", [({"name": "linear"}, "unknown speed law 'linear'"),
+                                       ({"rho_jam": 0.0}, "'rho_jam' must be positive"),
+                                       ({"gamma_w": -1.0}, "'gamma_w' must be positive")])
+def test_bad_laws_are_clear_errors(kw, match):
+    with pytest.raises(ParameterError, match=match):
+        SpeedLaw(**{"name": "weidmann", **kw})
+
+
+def test_bad_speed_law_on_the_command_line(geometries_dir, tmp_path, capsys):
+    from pedmesh.cli import main
+
+    rc = main(["run", str(geometries_dir / "l_shaped.json"), "--model", "rdue", "--param",
+               "speed_law=linear", "--out", str(tmp_path / "r"), "-q"])
+    assert rc != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].startswith("pedmesh: error:") and "unknown speed law 'linear'" in err[-1]
+
+
+@pytest.mark.parametrize("model", ["sfm", "rdue", "eos", "pw", "mac2-local"])
+def test_every_model_takes_the_law(model):
+    """The law reaches each model (its summary), and a jam-density law slows a crowd
+    that is denser than the free-flow regime: fewer out after a few seconds."""
+    from pedmesh import Room
+    from pedmesh.run.models import MODELS
+
+    # a crowd of 3 /m^2 right at a 4 m exit: Weidmann's law wants 0.25 m/s there (with
+    # U_f = 1.034 m/s), the exponential one 0.89 m/s
+    room = Room(outline=[(0, 0), (12, 0), (12, 4), (0, 4)],
+                exits=[{"name": "out", "polyline": [(12, 0), (12, 4)]}],
+                start_areas=[{"name": "crowd", "polygon": [(6, 0.3), (11.7, 0.3), (11.7, 3.7),
+                                                           (6, 3.7)], "density": 3.0}])
+    mesh = room.mesh(max_area=0.5)
+    out = {}
+    for law in ("exponential", "weidmann"):
+        run = MODELS[model](room, mesh, {"speed_law": law, "U_f": 1.034})
+        p = run.parameters()
+        assert p["speed_law"] == law
+        while run.t < 4.0:
+            run.step(4.0)
+        out[law] = run.evacuated
+    # (mac2-local: its mean-field pressure pushes the crowd out too, 0.9 times as many)
+    assert 0 < out["weidmann"] < (0.95 if model == "mac2-local" else 0.8) * out["exponential"]
