@@ -209,6 +209,14 @@ class StartArea:
         Lattice spacing [m].
     density
         Pedestrian density [ped/m^2].
+    premovement, speed, radius
+        Optional distributions (:mod:`pedmesh.population`) of the premovement time [s]
+        before a pedestrian starts walking, the free walking speed [m/s] and the body
+        radius [m]: a number (constant) or a dict such as ``{"distribution": "normal",
+        "mean": 1.34, "sd": 0.26, "min": 0.46, "max": 2.22}``.
+    exits
+        Optional exits this area's people head for: a list of exit names (the quickest
+        of them) or ``{name: fraction}`` (fractions of the people, adding up to 1).
     """
 
     name: str
@@ -216,6 +224,10 @@ class StartArea:
     count: int | None = None
     spacing: float | None = None
     density: float | None = None
+    premovement: Any = None
+    speed: Any = None
+    radius: Any = None
+    exits: Any = None
 
     def __post_init__(self) -> None:
         _check_name(self.name, "start area")
@@ -231,6 +243,15 @@ class StartArea:
         object.__setattr__(self, "count", _positive(self.count, "count", label, integer=True))
         object.__setattr__(self, "spacing", _positive(self.spacing, "spacing", label))
         object.__setattr__(self, "density", _positive(self.density, "density", label))
+        from ..population import Distribution, distribution_from_spec, exit_choice_from_spec
+
+        for key, positive in (("premovement", False), ("speed", True), ("radius", True)):
+            v = getattr(self, key)
+            if v is not None and not isinstance(v, Distribution):
+                object.__setattr__(self, key, distribution_from_spec(v, key, label,
+                                                                     positive=positive))
+        if self.exits is not None:
+            object.__setattr__(self, "exits", exit_choice_from_spec(self.exits, label))
 
     @cached_property
     def shape(self) -> Polygon:
@@ -411,6 +432,13 @@ class Room:
             "measurement_areas",
             _coerce_elements(self.measurement_areas, MeasurementArea, "measurement area"),
         )
+        names = {e.name for e in self.exits}
+        for s in self.start_areas:
+            for e, _ in s.exits or ():
+                if e not in names:
+                    raise GeometryError(f"start area '{s.name}': 'exits' names '{e}', which is "
+                                        f"not an exit of the room (exits: "
+                                        f"{', '.join(sorted(names))})")
         self._validate()
 
     # ------------------------------------------------------------------ validation

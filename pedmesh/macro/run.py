@@ -14,7 +14,10 @@ from ..errors import ParameterError, SimulationError
 from .models import macro_model
 from .solver import FVController, FVOptions, FVSolver, FVState
 
-__all__ = ["MacroRunOptions", "MacroRun", "initial_density"]
+__all__ = ["MacroRunOptions", "MacroRun", "initial_density", "area_densities"]
+
+#: [s] the step of the clock while every pedestrian is still within their premovement
+WAIT_STEP = 0.5
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -47,9 +50,16 @@ class MacroRunOptions:
 def initial_density(room, mesh) -> np.ndarray:
     """Cell averages [ped/m^2] of the room's start areas: each area's density (1/spacing^2,
     density, or count/area) times the covered fraction of every triangle."""
-    rho = np.zeros(mesh.n_triangles)
+    return np.sum(area_densities(room, mesh), axis=0) if room.start_areas else \
+        np.zeros(mesh.n_triangles)
+
+
+def area_densities(room, mesh) -> list[np.ndarray]:
+    """:func:`initial_density` of each start area separately (a list of (m,) arrays)."""
+    out = []
     tris = shapely.polygons(mesh.points[mesh.triangles])
     for s in room.start_areas:
+        rho = np.zeros(mesh.n_triangles)
         shape = s.shape.intersection(room.walkable)
         if s.spacing is not None:
             d = 1.0 / s.spacing**2
@@ -61,7 +71,8 @@ def initial_density(room, mesh) -> np.ndarray:
         frac = np.zeros(mesh.n_triangles)
         frac[cand] = shapely.area(shapely.intersection(tris[cand], shape)) / mesh.areas[cand]
         rho += d * np.clip(frac, 0.0, 1.0)
-    return rho
+        out.append(rho)
+    return out
 
 
 #: model parameters that are words, switches (0/1), positive, or >= 0 by their meaning
@@ -122,13 +133,25 @@ class MacroRun:
         #: things the user should know about this run (e.g. a calibration for other parameters)
         self.warnings = list(getattr(self.model, "warnings", []))
         self.solver = FVSolver(mesh, self.model, self.fv_options)
+        #: start areas with a premovement time: (their density (m,) [ped/m^2], the
+        #: distribution); their people appear where they stand, at rest, as the
+        #: distribution's CDF grows (a delayed source)
+        self._delayed: list[tuple[np.ndarray, Any]] = []
         if rho0 is None:
             if room is None or not room.start_areas:
                 raise SimulationError("no initial crowd: the room has no start areas")
-            rho0 = initial_density(room, mesh)
+            parts = area_densities(room, mesh)
+            rho0 = np.zeros(mesh.n_triangles)
+            for a, rho_a in zip(room.start_areas, parts):
+                if a.premovement is None:
+                    rho0 += rho_a
+                else:
+                    rho0 += rho_a * float(a.premovement.cdf(0.0))
+                    self._delayed.append((rho_a, a.premovement))
+            self._note_population(room)
         self.state = FVState(self.model.initial_state(rho0))
         self.controller = FVController(self.solver, self.state)
-        self._n0 = self.solver.mass(self.state.Q)
+        self._n0 = self.solver.mass(self.state.Q) + self.waiting
         if self._n0 <= 0:
             raise SimulationError("the initial crowd is empty")
         self.sample_interval = self.options.sample_interval
@@ -152,7 +175,25 @@ class MacroRun:
 
     @property
     def remaining(self) -> float:
-        return self.solver.mass(self.state.Q)
+        """Pedestrians [ped] inside: walking, and still waiting out their premovement."""
+        return self.solver.mass(self.state.Q) + self.waiting
+
+    @property
+    def waiting(self) -> float:
+        """Pedestrians [ped] who have not started yet (premovement)."""
+        t = self.state.t
+        return float(sum(self.solver.mass(rho[:, None]) * (1.0 - float(d.cdf(t)))
+                         for rho, d in self._delayed))
+
+    def _note_population(self, room) -> None:
+        """Warnings for what a continuum model cannot represent of the start areas."""
+        for a in room.start_areas:
+            for key, what in (("speed", "one free speed U_f"), ("radius", "no body radii"),
+                              ("exits", "the quickest route to any exit")):
+                if getattr(a, key) is not None:
+                    self.warnings.append(
+                        f"start area '{a.name}': its '{key}' is not used; the continuum "
+                        f"model has {what}")
 
     @property
     def done(self) -> bool:
@@ -166,7 +207,20 @@ class MacroRun:
         shortened). ``math.inf`` (the default): the plain CFL step, bit for bit as before.
         A ``t_limit`` that is NaN or not after :attr:`t` is a ValueError."""
         self._prev = (self.state.t, self.state.Q.copy())
-        self.controller.advance(None if t_limit == math.inf else t_limit)
+        t0 = self.state.t
+        if self._delayed and self.solver.mass(self.state.Q) <= 1e-12 * self._n0:
+            # nobody walks yet (all within their premovement): only the clock moves, by at
+            # most WAIT_STEP s (a step's release is applied at its end)
+            self.state.t = min(t_limit, t0 + WAIT_STEP)
+        else:
+            self.controller.advance(None if t_limit == math.inf else t_limit)
+        if self._delayed:  # the people whose premovement ended within the step start, at rest
+            t1 = self.state.t
+            add = np.zeros(len(self.state.Q))
+            for rho, d in self._delayed:
+                add += rho * float(d.cdf(t1) - d.cdf(t0))
+            self.state.Q[:, 0] += add
+            self.controller.mass0 += self.solver.mass(add[:, None])
         self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
         self._curve_t.append(self.state.t)
         self._curve_n.append(self.evacuated)

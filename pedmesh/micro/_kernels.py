@@ -152,14 +152,15 @@ def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa):
 
 
 @nb.njit(cache=True)
-def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rij, A, B, k, kappa, m, R, F,
+def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m, R, F,
                     rho, with_density=True):
     """Pair accelerations (into ``F``, zeroed first) and Gaussian kernel densities over a
     pair list from :func:`build_pairs` (a superset of the pairs in range).
 
     ``rho[i] = sum_j w(|x_i - x_j|)`` over all j including i itself (paper eq3, eq4),
     truncated at ``rc_d``; the pair force (social repulsion, body force and sliding
-    friction, divided by m) is truncated at ``rc_f`` and must vanish for every far pair
+    friction, divided by m; r_ij = ``rad[i] + rad[j]``, the body radii [m]) is truncated at
+    ``rc_f`` and must vanish for every far pair
     (``build_pairs`` guarantees it when its ``rc_near`` covers ``rc_f`` plus the motion
     since the list was built). Each pair's force is added to one pedestrian and subtracted
     from the other, so Newton's third law holds to round-off. With ``with_density`` false,
@@ -189,7 +190,7 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rij, A, B, k, ka
             rho[j] += w
         if d2 < rc_f2 and d2 > 0.0:
             fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
-                                rij, A, invB, k, kappa)
+                                rad[i] + rad[j], A, invB, k, kappa)
             fx *= inv_m
             fy *= inv_m
             F[i, 0] += fx
@@ -253,8 +254,9 @@ def wall_contact(px, py, s, piece, next_seg):
 
 @nb.njit(cache=True)
 def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
-               cell_seg, rc_w, ri, A, B, k, kappa, m, F):
-    """Add the wall accelerations of every pedestrian to ``F`` (cut-off ``rc_w`` [m])."""
+               cell_seg, rc_w, rad, A, B, k, kappa, m, F):
+    """Add the wall accelerations of every pedestrian to ``F`` (cut-off ``rc_w`` [m]; body
+    radii ``rad`` [m])."""
     rc2 = rc_w * rc_w
     invB = 1.0 / B
     inv_m = 1.0 / m
@@ -276,8 +278,8 @@ def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
                 continue
             # the pair force with a resting partner of radius 0 at the contact point q:
             # friction against the wall is -kappa (r_i - d) <v_i, t> t
-            fx, fy = pair_force(dx, dy, math.sqrt(d2), -v[i, 0], -v[i, 1], ri, A, invB, k,
-                                kappa)
+            fx, fy = pair_force(dx, dy, math.sqrt(d2), -v[i, 0], -v[i, 1], rad[i], A, invB,
+                                k, kappa)
             F[i, 0] += fx * inv_m
             F[i, 1] += fy * inv_m
 
@@ -354,16 +356,18 @@ def follow(points, triangles, nbr, tri, x, n, P):
 @nb.njit(cache=True)
 def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-          rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, law,
-          const_u, use_const, F, rho, e, with_density):
+          rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
+          const_u, use_const, F, rho, e, with_density, toff, tbuf):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
     desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
-    else as they are; U_e = U_f g(rho) with g the speed law array ``law``, see
-    :mod:`pedmesh.speed`)."""
-    pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, 2.0 * r, A, B, k, kappa, m,
+    else as they are). Per pedestrian i: body radius ``rad[i]`` [m], free speed ``u0[i]``
+    [m/s] (0 before its premovement time), U_e = u0[i] g(rho) with g the speed law array
+    ``law`` (:mod:`pedmesh.speed`), and its route: row ``tri[i] + toff[i]`` of the stacked
+    direction tables ``dpack`` (one table per target group; ``tbuf`` (n,) work)."""
+    pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m,
                     R, F, rho, with_density)
     wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-               rc_w, r, A, B, k, kappa, m, F)
+               rc_w, rad, A, B, k, kappa, m, F)
     inv_tau = 1.0 / tau
     if use_const:
         for i in range(n):
@@ -371,9 +375,11 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
             F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
         return
     follow(points, triangles, nbr, tri, x, n, dpack)
-    _interpolate(dpack, tri[:n], x[:n], e)
     for i in range(n):
-        ue = U_f * shape(law, rho[i])
+        tbuf[i] = tri[i] + toff[i] if tri[i] >= 0 else -1
+    _interpolate(dpack, tbuf[:n], x[:n], e)
+    for i in range(n):
+        ue = u0[i] * shape(law, rho[i])
         F[i, 0] += (ue * e[i, 0] - v[i, 0]) * inv_tau
         F[i, 1] += (ue * e[i, 1] - v[i, 1]) * inv_tau
 
@@ -471,8 +477,9 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
 def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-             rc_f, rc_d, rc_w, r, A, B, k, kappa, m, R, tau, U_f, law,
-             const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages):
+             rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
+             const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages,
+             toff, tbuf):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
@@ -494,8 +501,8 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         return -1
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
-          next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, law, const_u, use_const, F, rho, e, every)
+          next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
+          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf)
     for i in range(n):
         rho_out[i] = rho[i]
         for d in range(2):
@@ -508,8 +515,8 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
-          next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, law, const_u, use_const, F, rho, e, every)
+          next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
+          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf)
     for i in range(n):
         for d in range(2):
             x1 = xs[i, d]
@@ -523,8 +530,8 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
-          next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, r, A, B, k, kappa,
-          m, R, tau, U_f, law, const_u, use_const, F, rho, e, every)
+          next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
+          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf)
     for i in range(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])

@@ -13,7 +13,8 @@
   against the resting wall. The paper prints ``+kappa ...`` for the wall friction, which
   would accelerate a pedestrian sliding along a wall; the pair term with v_wall = 0 gives
   the minus sign used here. Exit edges exert no force;
-* ``U_e = U_f exp(-beta rho)`` with ``rho`` the Gaussian kernel density (eq3, eq4, the
+* ``U_e = U_f g(rho)`` (the speed law of :mod:`pedmesh.speed`, the paper's ``exp(-beta
+  rho)`` by default) with ``rho`` the Gaussian kernel density (eq3, eq4, the
   pedestrian itself included), ``e = -grad(phi)/|grad(phi)|`` with ``|grad phi| = 1/U_e``
   solved on the mesh from the kernel density at the vertices, every ``route_interval`` s;
 * Shu-Osher SSP-RK3 in time; after each step a pedestrian whose step crossed a wall is
@@ -74,6 +75,11 @@ class Simulation:
     reroute
         Re-solve the route potential from the current density (default). ``False`` keeps
         the routes of the initial crowd (static routes).
+    population
+        Per-pedestrian attributes (:class:`pedmesh.population.Population`, in the order of
+        the positions): free speed, body radius (NaN: ``params.U_f``, ``params.r``),
+        premovement time (a pedestrian wants no speed before it) and the exits each heads
+        for (one route potential per distinct set of exits). Default: everyone alike.
 
     Raises
     ------
@@ -89,7 +95,7 @@ class Simulation:
                  params: SocialForceParams | None = None,
                  numerics: SFMNumerics | None = None,
                  desired_velocity: np.ndarray | None = None,
-                 reroute: bool = True) -> None:
+                 reroute: bool = True, population=None) -> None:
         self.mesh = mesh
         self.params = params or SocialForceParams()
         self.numerics = numerics or SFMNumerics()
@@ -112,6 +118,7 @@ class Simulation:
                 f"pedestrian {i} starts at ({x[i, 0]:.3f}, {x[i, 1]:.3f}) m, outside the walkable "
                 "area (outside the room or inside an obstacle)"
             )
+        self._set_population(population, len(x))
         self._check_overlaps(x)
         v = (np.zeros_like(x) if velocities is None
              else np.array(velocities, np.float64).reshape(N, 2))
@@ -148,9 +155,11 @@ class Simulation:
         # neighbour grid over the room: cells at least as large as the pair-list radius (the
         # force cut-off plus the skin; the density cut-off, plus the skin if the density is
         # re-evaluated at later stages from the same list)
-        self.rc_f = nm.force_cutoff
+        # (bodies larger than r: the cut-offs grow with them, so the cut force stays the same)
+        extra = max(float(self.rad.max()) - p.r, 0.0)
+        self.rc_f = nm.force_cutoff + 2.0 * extra
         self.rc_d = nm.density_cutoff * p.R
-        self.rc_w = max(nm.force_cutoff - p.r, 1e-6)
+        self.rc_w = max(nm.force_cutoff - p.r, 1e-6) + extra
         cell = max(self.rc_f + PAIR_SKIN,
                    self.rc_d + (PAIR_SKIN if nm.density_stages == 3 else 0.0))
         x0, y0, x1, y1 = mesh.bounds
@@ -176,6 +185,9 @@ class Simulation:
             from ..eikonal import EikonalSolver
 
             self._solver = EikonalSolver(mesh)
+            # one more solver per distinct set of target exits (pedmesh.population)
+            self._group_solvers = [None] + [EikonalSolver(mesh, exits=list(t))
+                                            for t in self._targets[1:]]
             self._route()  # sets the packed steering table self._dpack
         else:
             from ..eikonal.direction import pack_directions
@@ -185,20 +197,56 @@ class Simulation:
                                           np.zeros((mesh.n_triangles, 2)))
 
     # ------------------------------------------------------------------ helpers
+    def _set_population(self, pop, N: int) -> None:
+        """Per-pedestrian radius ``rad``, free speed ``u0``, premovement ``tpre`` and route
+        group (``toff``: the group's row offset in the stacked steering tables)."""
+        p = self.params
+        self.rad = np.full(N, p.r)
+        self.u0 = np.full(N, p.U_f)
+        self.tpre = np.zeros(N)
+        group = np.zeros(N, np.int64)
+        self._targets: list[tuple[str, ...]] = [()]
+        if pop is not None:
+            for name in ("speed", "radius", "premovement", "target"):
+                if len(getattr(pop, name)) != N:
+                    raise SimulationError(f"the population has {len(getattr(pop, name))} "
+                                          f"{name} values for {N} pedestrians")
+            self.rad = np.where(np.isnan(pop.radius), p.r, pop.radius).astype(float)
+            self.u0 = np.where(np.isnan(pop.speed), p.U_f, pop.speed).astype(float)
+            self.tpre = np.asarray(pop.premovement, float).copy()
+            if np.any(self.rad <= 0) or np.any(self.u0 < 0) or np.any(self.tpre < 0):
+                raise SimulationError("body radii must be positive, free speeds and "
+                                      "premovement times >= 0")
+            used = np.unique(pop.target)
+            self._targets = [()] + [pop.targets[g] for g in used if len(pop.targets[g])]
+            remap = {g: (self._targets.index(pop.targets[g]) if len(pop.targets[g]) else 0)
+                     for g in used}
+            group = np.array([remap[g] for g in pop.target], np.int64)
+        self._premovement = bool(np.any(self.tpre > 0))
+        self._u_eff = self.u0.copy()
+        self.toff = group * self.mesh.n_triangles
+        self._tbuf = np.empty(N, np.int64)
+
     def _check_overlaps(self, x: np.ndarray) -> None:
         from scipy.spatial import cKDTree
 
-        lim = 2 * self.params.r - self.numerics.overlap_tolerance
+        tol = self.numerics.overlap_tolerance
+        rmax = float(self.rad.max())
+        lim = 2 * rmax - tol
         if lim <= 0:
             return
         pairs = cKDTree(x).query_pairs(lim, output_type="ndarray")
         if len(pairs):
-            i, j = (int(a) for a in pairs[0])
-            d = float(np.hypot(*(x[i] - x[j])))
-            raise SimulationError(
-                f"pedestrians {i} and {j} overlap: {d:.3f} m apart, bodies need "
-                f"{2 * self.params.r:.3f} m (tolerance {self.numerics.overlap_tolerance} m)"
-            )
+            need = self.rad[pairs[:, 0]] + self.rad[pairs[:, 1]]
+            d = np.hypot(*(x[pairs[:, 0]] - x[pairs[:, 1]]).T)
+            bad = np.flatnonzero(d < need - tol)
+            if len(bad):
+                k = int(bad[0])
+                i, j = (int(a) for a in pairs[k])
+                raise SimulationError(
+                    f"pedestrians {i} and {j} overlap: {d[k]:.3f} m apart, bodies need "
+                    f"{need[k]:.3f} m (tolerance {tol} m)"
+                )
 
     def _build_cells(self) -> None:
         from . import _kernels as K
@@ -233,7 +281,13 @@ class Simulation:
             cost = self.params.speed.route_cost(rho_v)
             self.phi = self._solver.solve(cost)
             field_ = DirectionField(self.mesh, self.phi)
-            self._dpack = field_.packed
+            if len(self._targets) == 1:
+                self._dpack = field_.packed
+            else:  # a steering table per target group, stacked (rows t + g m)
+                tables = [field_.packed] + [
+                    DirectionField(self.mesh, s.solve(cost)).packed
+                    for s in self._group_solvers[1:]]
+                self._dpack = np.ascontiguousarray(np.concatenate(tables, axis=0))
             self.timers.routes += 1
         ri = self.numerics.route_interval
         self._next_route = self.t + ri if ri > 0 else self.t
@@ -250,9 +304,10 @@ class Simulation:
             self._cell_start, self._cell_order, self._cx0, self._cy0, self._cinv,
             self._cnx, self._cny, w.piece, w.next_seg, w.x0, w.y0,
             w.inv_cell, w.nx, w.ny, w.cell_ptr, w.cell_seg, self.rc_f, self.rc_d, self.rc_w,
-            p.r, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, p.U_f, self._law, self._const_u,
-            self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho, self._e,
-            self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
+            self.rad, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, self._u_eff, self._law,
+            self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
+            self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
+            self.toff, self._tbuf,
         )
 
     def step(self) -> int:
@@ -265,6 +320,8 @@ class Simulation:
         if not self._use_const and self.steps > 0 and self.t >= self._next_route - 1e-9:
             self._route()
         n, dt, mesh = self.n, nm.dt, self.mesh
+        if self._premovement:  # no desired speed before one's premovement time
+            np.copyto(self._u_eff[:n], np.where(self.tpre[:n] <= self.t, self.u0[:n], 0.0))
         t0 = time.perf_counter()
         x_old = self.x[:n].copy()
         while True:
@@ -298,7 +355,7 @@ class Simulation:
             self.exit_point[ids] = self.x[:n][gone]
             keep = np.flatnonzero(~gone)
             m = len(keep)
-            for arr in (self.x, self.v):
+            for arr in (self.x, self.v, self.rad, self.u0, self._u_eff, self.tpre, self.toff):
                 arr[:m] = arr[keep]
             self.ids[:m] = self.ids[keep]
             self.tri[:m] = self.tri[keep]

@@ -80,8 +80,22 @@ class SFMRun:
             positions = seeded_positions(room if room is not None else mesh.room, int(seed),
                                          radius=self.params.r)
         self.seed = seed
+        # who the start areas' people are (premovement, speeds, radii, exits), drawn with
+        # the seed (0 without one) when the room's start areas say so
+        population = None
+        src = room if room is not None else mesh.room
+        if src is not None and any(
+                getattr(a, k) is not None for a in src.start_areas
+                for k in ("premovement", "speed", "radius", "exits")):
+            from ..population import draw_population
+
+            n = len(positions) if positions is not None else None
+            counts = [len(a.positions(src.walkable)) for a in src.start_areas]
+            if n is None or n == sum(counts):
+                population = draw_population(src, counts, seed=0 if seed is None else seed)
+        self.population = population
         self.sim = Simulation(mesh, positions, params=self.params, numerics=self.numerics,
-                              reroute=not static_routes)
+                              reroute=not static_routes, population=population)
         self.mesh = mesh
         self.static_routes = static_routes
         self.sample_interval = self.numerics.sample_interval
@@ -131,9 +145,24 @@ class SFMRun:
     def parameters(self) -> dict[str, Any]:
         from dataclasses import asdict
 
-        return {**asdict(self.params), **asdict(self.numerics),
-                "reroute": not self.static_routes, "trajectory_rate": self.trajectory_rate,
-                "seed": self.seed}
+        out = {**asdict(self.params), **asdict(self.numerics),
+               "reroute": not self.static_routes, "trajectory_rate": self.trajectory_rate,
+               "seed": self.seed}
+        if self.population is not None:  # what was drawn: min, mean, max of each
+            sim = self.sim
+            mmm = lambda a: [float(a.min()), float(a.mean()), float(a.max())]  # noqa: E731
+            groups = np.bincount(sim.toff // max(self.mesh.n_triangles, 1),
+                                 minlength=len(sim._targets))
+            out["population"] = {
+                "premovement_s": mmm(self.population.premovement),
+                "free_speed_m_s": mmm(np.where(np.isnan(self.population.speed),
+                                               self.params.U_f, self.population.speed)),
+                "radius_m": mmm(np.where(np.isnan(self.population.radius), self.params.r,
+                                         self.population.radius)),
+                "exit_groups": {("any" if not t else "+".join(t)): int(c)
+                                for t, c in zip(sim._targets, groups)},
+            }
+        return out
 
     def exit_counts(self) -> np.ndarray:
         """Pedestrians [ped] who crossed each exit so far."""

@@ -13,7 +13,11 @@ Schema (keys not listed are an error)::
       "obstacles": [{"name": "pillar", "polygon": [[x, y], ...]}],
       "exits": [{"name": "door", "polyline": [[x, y], [x, y], ...]}],
       "start_areas": [{"name": "block", "polygon": [[x, y], ...],
-                       "spacing": 1.0}],  # or "count": 100 or "density": 2.0 [ped/m^2]
+                       "spacing": 1.0,    # or "count": 100 or "density": 2.0 [ped/m^2]
+                       # optional (pedmesh.population): distributions of the premovement
+                       # time [s], free speed [m/s], body radius [m]; the exits to take
+                       "premovement": {"distribution": "uniform", "min": 0, "max": 60},
+                       "speed": 1.34, "radius": 0.2, "exits": ["north"]}],
       "measurement_lines": [{"name": "line", "polyline": [[x, y], ...]}],
       "measurement_areas": [{"name": "area", "polygon": [[x, y], ...]}]
     }
@@ -52,7 +56,9 @@ _TOP_KEYS = {
 _ELEMENTS: dict[str, tuple[type, str, str, tuple[str, ...]]] = {
     "obstacles": (Obstacle, "obstacle", "polygon", ()),
     "exits": (Exit, "exit", "polyline", ()),
-    "start_areas": (StartArea, "start area", "polygon", ("count", "spacing", "density")),
+    "start_areas": (StartArea, "start area", "polygon", ("count", "spacing", "density",
+                                                         "premovement", "speed", "radius",
+                                                         "exits")),
     "measurement_lines": (MeasurementLine, "measurement line", "polyline", ()),
     "measurement_areas": (MeasurementArea, "measurement area", "polygon", ()),
 }
@@ -124,8 +130,14 @@ def room_to_dict(room: Room) -> dict[str, Any]:
             d: dict[str, Any] = {"name": el.name,
                                  coord_key: [list(p) for p in getattr(el, coord_key)]}
             for k in optional:
-                if getattr(el, k) is not None:
-                    d[k] = getattr(el, k)
+                v = getattr(el, k)
+                if v is None:
+                    continue
+                if hasattr(v, "to_spec"):  # a distribution (pedmesh.population)
+                    v = v.to_spec()
+                elif k == "exits":
+                    v = ([e for e, _ in v] if all(f is None for _, f in v) else dict(v))
+                d[k] = v
             items.append(d)
         if items:
             out[key] = items

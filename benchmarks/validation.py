@@ -1,0 +1,447 @@
+"""Validation of the social force model against experiments (and the objective of a fit).
+
+1. **Corridor** (default): the five Jülich uni-directional corridor runs (Düsseldorf 2009;
+   Zhang, Klingsch, Schadschneider, Seyfried, J. Stat. Mech. P06004, 2011; Pedestrian
+   Dynamics Data Archive of Forschungszentrum Jülich). Each room of
+   ``geometries/experiments/`` is simulated with the SFM and the run's trajectories and the
+   experiment's are measured by the same functions of :mod:`pedmesh.validation`: flow at
+   the exit (y = -4) and at y = 0, steady-state Voronoi density and speed in the area
+   (0, -2)-(1.8, 0), and the pooled fundamental diagram at 1, 2, 3 /m^2 against the
+   experiment's and Weidmann's.
+2. ``--bottleneck``: 150 people waiting directly in front of a 2.8 m long corridor of width
+   b = 0.8, 1.2, 1.8, 2.5 m (the widths of Seyfried et al. 2009 / Liddle et al. 2011; the
+   room is generated here, its proportions are this script's choice): specific flow J/b
+   [1/(m s)] at the middle of the corridor by the same quantile flow, against ~1.9.
+3. ``--free``: three pedestrians 15 m apart in a 60 m corridor: mean speed [m/s] against
+   the free walking speed 1.34 m/s.
+
+    python benchmarks/validation.py [--data DIR] [--preset NAME] [--param NAME=VALUE ...]
+                                    [--bottleneck] [--free] [--only-extra] [--out DIR]
+
+``--data`` is the experiments directory (``data/*.txt``; default ``$PEDMESH_EXPERIMENTS``
+or ``<repo>/../shared/experiments``). Simulations run one at a time; set
+``NUMBA_NUM_THREADS=1`` on a shared machine. Results go to ``--out`` (default
+``runs/validation``): ``validation.json`` (every number, the errors, wall times),
+``validation.md`` (the tables) and the runs in ``runs/<part>/<name>/``.
+
+As the objective of a parameter fit, from Python (with ``benchmarks/`` on ``sys.path``)::
+
+    from validation import validation_errors
+    err = validation_errors({"r": 0.2, "A": 1500.0}, preset="weidmann",
+                            parts=("corridor", "bottleneck"))
+    err["rms"], err["corridor/uo-100-180-180/J_exit"], err["bottleneck/b=1.2"]
+
+gives the relative errors (sim / reference - 1) as plain floats.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+import warnings
+from collections.abc import Iterable, Mapping
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pedmesh import Exit, MeasurementLine, Room, StartArea, load_room
+from pedmesh import validation as V
+
+ROOT = Path(__file__).resolve().parents[1]
+ROOMS = ROOT / "geometries" / "experiments"
+MESH_OPTIONS = {"max_area": 2.0, "min_angle": 30.0, "feature_area": 0.3, "exit_size": None}
+FD_DENSITIES = (1.0, 2.0, 3.0)  # [1/m^2]
+FD_HALF_WIDTH = 0.25  # [1/m^2]
+BOTTLENECK_WIDTHS = (0.8, 1.2, 1.8, 2.5)  # [m]
+BOTTLENECK_LENGTH = 2.8  # [m]
+BOTTLENECK_PEOPLE = 150
+PARTS = ("corridor", "bottleneck", "free")
+
+
+def default_data_dir() -> Path:
+    """``$PEDMESH_EXPERIMENTS``, else ``<repo>/../shared/experiments``."""
+    env = os.environ.get("PEDMESH_EXPERIMENTS")
+    return Path(env) if env else (ROOT.parent / "shared" / "experiments").resolve()
+
+
+# --------------------------------------------------------------------------- rooms
+def bottleneck_room(width_m: float, *, length_m: float = BOTTLENECK_LENGTH,
+                    people: int = BOTTLENECK_PEOPLE) -> Room:
+    """A waiting area 8 m wide and 7.5 m deep (y in [0, 7.5]) with ``people`` on a lattice
+    (2.5 /m^2 for 150), directly in front of a corridor of width ``width_m`` [m] and length
+    ``length_m`` [m] centred on it; the corridor's far end is the exit, the flow line
+    ``middle`` lies across the corridor half way along it."""
+    w_wait, d_wait = 8.0, 7.5
+    xl, xr = 0.5 * (w_wait - width_m), 0.5 * (w_wait + width_m)
+    y_end = d_wait + length_m
+    outline = [(0, 0), (w_wait, 0), (w_wait, d_wait), (xr, d_wait), (xr, y_end),
+               (xl, y_end), (xl, d_wait), (0, d_wait)]
+    return Room(outline, exits=[Exit("exit", [(xl, y_end), (xr, y_end)])],
+                start_areas=[StartArea("waiting", [(0.2, 0.2), (w_wait - 0.2, 0.2),
+                                                   (w_wait - 0.2, d_wait - 0.2),
+                                                   (0.2, d_wait - 0.2)], count=people)],
+                measurement_lines=[MeasurementLine("middle", [(xl, d_wait + 0.5 * length_m),
+                                                              (xr, d_wait + 0.5 * length_m)])],
+                name=f"bottleneck-b{width_m:g}")
+
+
+def free_room(*, length_m: float = 60.0, width_m: float = 4.0) -> Room:
+    """A corridor ``length_m`` x ``width_m`` [m] with its far end (x = length) the exit and
+    three pedestrians on its axis at x = 1, 16, 31 m (15 m apart: no interaction)."""
+    y = 0.5 * width_m
+    starts = [StartArea(f"walker-{i}", [(x - 0.4, y - 0.4), (x + 0.4, y - 0.4),
+                                        (x + 0.4, y + 0.4), (x - 0.4, y + 0.4)], count=1)
+              for i, x in enumerate((1.0, 16.0, 31.0))]
+    return Room([(0, 0), (length_m, 0), (length_m, width_m), (0, width_m)],
+                exits=[Exit("exit", [(length_m, 0), (length_m, width_m)])],
+                start_areas=starts, name="free-walking")
+
+
+#: where the free speed is measured: x in [36, 58] m (at least 5 m after every start)
+FREE_AREA = ((36.0, 0.0), (58.0, 0.0), (58.0, 4.0), (36.0, 4.0))
+
+
+# --------------------------------------------------------------------------- running
+def run_sfm(room: Room, out_dir: Path, *, overrides: Mapping[str, Any] | None = None,
+            preset: str | None = None, t_end: float = 600.0, trajectory_rate: float = 10.0,
+            geometry: str | None = None) -> dict[str, Any]:
+    """Simulate ``room`` with the SFM into ``out_dir``; the run's summary plus
+    ``wall_s`` (whole wall time [s] including meshing) and ``error`` (None, or why the
+    run failed)."""
+    from pedmesh.errors import PedmeshError
+    from pedmesh.run import run_model
+
+    t0 = time.perf_counter()
+    try:
+        mesh = room.mesh(**{k: v for k, v in MESH_OPTIONS.items() if v is not None})
+        summary = run_model(room, mesh, "sfm", overrides=dict(overrides or {}), t_end=t_end,
+                            out_dir=out_dir, quiet=True, geometry=geometry,
+                            mesh_options=dict(MESH_OPTIONS),
+                            model_options={"trajectory_rate": trajectory_rate},
+                            preset=preset)
+        error = None
+    except PedmeshError as exc:  # a blow-up or a bad parameter: record it, go on
+        summary, error = {"status": "failed"}, f"{type(exc).__name__}: {exc}"
+    summary = dict(summary)
+    summary["wall_s"] = time.perf_counter() - t0
+    summary["error"] = error
+    return summary
+
+
+@lru_cache(maxsize=8)
+def measure_experiments(data_dir: str, fd_frames: str = "steady") -> dict[str, dict]:
+    """:func:`pedmesh.validation.measure` of every experiment file in ``data_dir/data``
+    (cached: the same data give the same numbers)."""
+    out = {}
+    for name in V.EXPERIMENT_TABLE:
+        path = Path(data_dir) / "data" / f"{name}.txt"
+        if not path.is_file():
+            continue
+        traj = V.load_experiment(path)
+        setup = V.corridor_setup(exit_width_m=V.experiment_exit_width(name))
+        out[name] = V.measure(traj, setup, fd_frames=fd_frames)
+    return out
+
+
+def _rel(sim: float, ref: float) -> float:
+    """Relative error sim / ref - 1 [-] (nan if either is missing)."""
+    if not (math.isfinite(sim) and math.isfinite(ref)) or ref == 0:
+        return math.nan
+    return sim / ref - 1.0
+
+
+def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None,
+                  t_end: float = 600.0, trajectory_rate: float = 10.0,
+                  fd_frames: str = "steady", log=print) -> dict[str, Any]:
+    """Simulate and measure the five corridor runs; rows and the pooled FD."""
+    experiments = measure_experiments(str(data_dir), fd_frames)
+    if not experiments:
+        raise SystemExit(f"no experiment files in {data_dir / 'data'} "
+                         "(--data DIR or PEDMESH_EXPERIMENTS)")
+    rows, sim_fd, exp_fd = [], ([], []), ([], [])
+    for name, exp in experiments.items():
+        path = ROOMS / f"{name}.json"
+        room = load_room(path)
+        s = run_sfm(room, runs_dir / name, overrides=overrides, preset=preset, t_end=t_end,
+                    trajectory_rate=trajectory_rate, geometry=str(path))
+        row: dict[str, Any] = {"run": name, "status": s.get("status"), "error": s["error"],
+                               "wall_s": s["wall_s"], "n_initial": s.get("n_initial"),
+                               "n_evacuated": s.get("n_evacuated")}
+        sim = None
+        if s["error"] is None:
+            sim = V.measure(V.load_run(runs_dir / name), V.corridor_setup(room.walkable),
+                            fd_frames=fd_frames)
+        for key, get in (("J_exit", lambda m: m["flow"]["exit"]),
+                         ("J_y0", lambda m: m["flow"]["y0"]),
+                         ("density", lambda m: m["density"]), ("speed", lambda m: m["speed"])):
+            row[f"{key}_exp"] = get(exp)
+            row[f"{key}_sim"] = get(sim) if sim is not None else math.nan
+            row[f"{key}_err"] = _rel(row[f"{key}_sim"], row[f"{key}_exp"])
+        if sim is not None:
+            sim_fd[0].append(sim["fd_density"])
+            sim_fd[1].append(sim["fd_speed"])
+        exp_fd[0].append(exp["fd_density"])
+        exp_fd[1].append(exp["fd_speed"])
+        rows.append(row)
+        log(f"  {name}: {row['status']}, {row['wall_s']:.1f} s wall"
+            + (f" ({row['error']})" if row["error"] else ""))
+
+    def pooled(fd):
+        if not fd[0]:
+            return V.bin_fd([], [], FD_DENSITIES, FD_HALF_WIDTH)
+        return V.bin_fd(np.concatenate(fd[0]), np.concatenate(fd[1]), FD_DENSITIES,
+                        FD_HALF_WIDTH)
+
+    fd = []
+    for s_bin, e_bin in zip(pooled(sim_fd), pooled(exp_fd)):
+        rho = s_bin["density"]
+        fd.append({"density": rho, "speed_sim": s_bin["speed"], "n_sim": s_bin["n"],
+                   "speed_exp": e_bin["speed"], "n_exp": e_bin["n"],
+                   "speed_weidmann": V.weidmann_speed(rho)})
+    return {"rows": rows, "fd": fd, "fd_frames": fd_frames}
+
+
+def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
+                    trajectory_rate: float = 10.0, widths: Iterable[float] = BOTTLENECK_WIDTHS,
+                    log=print) -> list[dict[str, Any]]:
+    """Specific flow J/b [1/(m s)] through bottlenecks of the given widths [m]."""
+    rows = []
+    for b in widths:
+        room = bottleneck_room(b)
+        out = runs_dir / f"b{b:g}"
+        s = run_sfm(room, out, overrides=overrides, preset=preset, t_end=t_end,
+                    trajectory_rate=trajectory_rate)
+        flow = math.nan
+        if s["error"] is None:
+            times = V.passage_times(V.load_run(out), room.measurement_lines[0].polyline)
+            flow = V.quantile_flow(times)
+        row = {"width_m": b, "J": flow, "J_per_b": flow / b, "status": s.get("status"),
+               "error": s["error"], "wall_s": s["wall_s"],
+               "err": _rel(flow / b, V.SPECIFIC_BOTTLENECK_FLOW_PER_MS)}
+        rows.append(row)
+        log(f"  bottleneck b = {b:g} m: {row['status']}, {row['wall_s']:.1f} s wall"
+            + (f" ({row['error']})" if row["error"] else ""))
+    return rows
+
+
+def free_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
+              trajectory_rate: float = 10.0, log=print) -> dict[str, Any]:
+    """Mean speed [m/s] of free walkers."""
+    out = runs_dir / "free"
+    s = run_sfm(free_room(), out, overrides=overrides, preset=preset, t_end=t_end,
+                trajectory_rate=trajectory_rate)
+    speed, n = math.nan, 0
+    if s["error"] is None:
+        speed, n = V.mean_speed_in_area(V.load_run(out), FREE_AREA)
+    log(f"  free walking: {s.get('status')}, {s['wall_s']:.1f} s wall"
+        + (f" ({s['error']})" if s["error"] else ""))
+    return {"speed": speed, "samples": n, "status": s.get("status"), "error": s["error"],
+            "wall_s": s["wall_s"], "err": _rel(speed, V.FREE_SPEED_MS)}
+
+
+# --------------------------------------------------------------------------- errors
+def errors_of(results: Mapping[str, Any]) -> dict[str, float]:
+    """The relative errors (sim / reference - 1) of a :func:`run_validation` result as a
+    flat dict of floats, plus ``rms`` (root mean square of the finite ones), ``count`` and
+    ``failed`` (runs that did not finish: their errors are nan)."""
+    err: dict[str, float] = {}
+    failed = 0
+    corridor = results.get("corridor")
+    if corridor:
+        for row in corridor["rows"]:
+            failed += row["error"] is not None
+            for key in ("J_exit", "J_y0", "density", "speed"):
+                err[f"corridor/{row['run']}/{key}"] = row[f"{key}_err"]
+        for b in corridor["fd"]:
+            if b["n_exp"]:
+                err[f"fd/rho={b['density']:g}"] = _rel(b["speed_sim"], b["speed_exp"])
+    for row in results.get("bottleneck") or []:
+        failed += row["error"] is not None
+        err[f"bottleneck/b={row['width_m']:g}"] = row["err"]
+    free = results.get("free")
+    if free:
+        failed += free["error"] is not None
+        err["free/speed"] = free["err"]
+    finite = np.array([v for v in err.values() if math.isfinite(v)])
+    err["rms"] = float(np.sqrt(np.mean(finite ** 2))) if len(finite) else math.nan
+    err["count"] = float(len(finite))
+    err["failed"] = float(failed)
+    return err
+
+
+def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | None = None, *,
+                   parts: Iterable[str] = ("corridor",), data_dir: str | Path | None = None,
+                   out_dir: str | Path | None = None, t_end: float = 600.0,
+                   trajectory_rate: float = 10.0, fd_frames: str = "steady",
+                   log=print) -> dict[str, Any]:
+    """Run the ``parts`` (``corridor``, ``bottleneck``, ``free``) with parameter
+    ``overrides`` on top of ``preset``; every number, the errors (:func:`errors_of`) and
+    the wall time [s]. The runs go to ``out_dir/runs`` (a temporary directory if None)."""
+    parts = tuple(parts)
+    unknown = set(parts) - set(PARTS)
+    if unknown:
+        raise ValueError(f"unknown parts {sorted(unknown)} (parts: {', '.join(PARTS)})")
+    data_dir = Path(data_dir) if data_dir is not None else default_data_dir()
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="pedmesh-validation-") as tmp:
+        runs = Path(out_dir) / "runs" if out_dir is not None else Path(tmp)
+        kw = {"overrides": dict(overrides or {}), "preset": preset, "t_end": t_end,
+              "trajectory_rate": trajectory_rate, "log": log}
+        results: dict[str, Any] = {
+            "preset": preset, "overrides": dict(overrides or {}), "data_dir": str(data_dir),
+            "t_end_s": t_end, "trajectory_rate_hz": trajectory_rate, "parts": list(parts)}
+        if "corridor" in parts:
+            results["corridor"] = corridor_part(data_dir, runs / "corridor",
+                                                fd_frames=fd_frames, **kw)
+        if "bottleneck" in parts:
+            results["bottleneck"] = bottleneck_part(runs / "bottleneck", **kw)
+        if "free" in parts:
+            results["free"] = free_part(runs / "free", **kw)
+    results["errors"] = errors_of(results)
+    results["wall_s"] = time.perf_counter() - t0
+    return results
+
+
+def validation_errors(overrides: Mapping[str, Any] | None = None, preset: str | None = None,
+                      **kw) -> dict[str, float]:
+    """The objective of a parameter fit: the relative errors of :func:`run_validation`
+    (same arguments; quiet unless ``log`` is given) as a flat dict of floats."""
+    kw.setdefault("log", lambda *a, **k: None)
+    return run_validation(overrides, preset, **kw)["errors"]
+
+
+# --------------------------------------------------------------------------- report
+def _f(v: float, fmt: str = ".2f") -> str:
+    return "-" if v is None or not math.isfinite(v) else format(v, fmt)
+
+
+def _pct(v: float) -> str:
+    return "-" if v is None or not math.isfinite(v) else f"{100 * v:+.0f}%"
+
+
+def tables(results: Mapping[str, Any]) -> list[tuple[str, list[str], list[list[str]]]]:
+    """The result tables: (title, header, rows of strings)."""
+    out = []
+    corridor = results.get("corridor")
+    if corridor:
+        head = ["run", "J exit sim", "J exit exp", "err", "J y0 sim", "J y0 exp", "err",
+                "rho sim", "rho exp", "v sim", "v exp", "wall [s]"]
+        rows = [[r["run"], _f(r["J_exit_sim"]), _f(r["J_exit_exp"]), _pct(r["J_exit_err"]),
+                 _f(r["J_y0_sim"]), _f(r["J_y0_exp"]), _pct(r["J_y0_err"]),
+                 _f(r["density_sim"]), _f(r["density_exp"]), _f(r["speed_sim"]),
+                 _f(r["speed_exp"]), _f(r["wall_s"], ".1f")] for r in corridor["rows"]]
+        out.append((("Corridor: flow J [1/s], steady-state Voronoi density [1/m^2] and "
+                     "speed [m/s] in (0,-2)-(1.8,0)"), head, rows))
+        head = ["rho [1/m^2]", "v sim", "n sim", "v exp", "n exp", "v Weidmann"]
+        rows = [[f"{b['density']:g} +- {FD_HALF_WIDTH:g}", _f(b["speed_sim"]), str(b["n_sim"]),
+                 _f(b["speed_exp"]), str(b["n_exp"]), _f(b["speed_weidmann"])]
+                for b in corridor["fd"]]
+        out.append((f"Pooled Voronoi speed [m/s] by density ({corridor['fd_frames']} frames)",
+                    head, rows))
+    if results.get("bottleneck"):
+        head = ["b [m]", "J [1/s]", "J/b sim [1/(m s)]", "J/b ref", "err", "wall [s]"]
+        rows = [[f"{r['width_m']:g}", _f(r["J"]), _f(r["J_per_b"]),
+                 _f(V.SPECIFIC_BOTTLENECK_FLOW_PER_MS), _pct(r["err"]), _f(r["wall_s"], ".1f")]
+                for r in results["bottleneck"]]
+        out.append(("Bottleneck: specific flow", head, rows))
+    free = results.get("free")
+    if free:
+        out.append(("Free walking", ["v sim [m/s]", "v ref [m/s]", "err", "samples", "wall [s]"],
+                    [[_f(free["speed"]), _f(V.FREE_SPEED_MS), _pct(free["err"]),
+                      str(free["samples"]), _f(free["wall_s"], ".1f")]]))
+    return out
+
+
+def _text_table(head, rows) -> str:
+    w = [max(len(str(x)) for x in col) for col in zip(head, *rows)]
+    lines = ["  ".join(str(x).rjust(n) for x, n in zip(r, w)) for r in [head, *rows]]
+    lines.insert(1, "  ".join("-" * n for n in w))
+    return "\n".join(lines)
+
+
+def _md_table(head, rows) -> str:
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, float)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def write_report(results: Mapping[str, Any], out_dir: Path) -> None:
+    """``validation.json`` and ``validation.md`` in ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "validation.json").write_text(json.dumps(_jsonable(results), indent=1) + "\n")
+    md = [(f"# SFM validation (preset {results['preset'] or 'default'}, overrides "
+           f"{results['overrides'] or 'none'})"), ""]
+    for title, head, rows in tables(results):
+        md += [f"## {title}", "", _md_table(head, rows), ""]
+    e = results["errors"]
+    md += [(f"RMS of {e['count']:.0f} relative errors: {e['rms']:.3f}; failed runs: "
+            f"{e['failed']:.0f}; wall time {results['wall_s']:.0f} s."), ""]
+    (out_dir / "validation.md").write_text("\n".join(md))
+
+
+def main(argv: list[str] | None = None) -> int:
+    from pedmesh.micro.params import parse_param_overrides
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, default=None, metavar="DIR",
+                    help="experiments directory with data/*.txt (default: $PEDMESH_EXPERIMENTS "
+                         "or <repo>/../shared/experiments)")
+    ap.add_argument("--preset", default=None, help="parameter preset (pedmesh presets)")
+    ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                    help="parameter override (repeatable)")
+    ap.add_argument("--out", type=Path, default=Path("runs") / "validation", metavar="DIR")
+    ap.add_argument("--bottleneck", action="store_true", help="also the bottleneck widths")
+    ap.add_argument("--free", action="store_true", help="also free walking")
+    ap.add_argument("--only-extra", action="store_true",
+                    help="skip the corridor runs (with --bottleneck / --free)")
+    ap.add_argument("--t-end", type=float, default=600.0, metavar="T",
+                    help="simulated time limit per run [s] (default 600)")
+    ap.add_argument("--trajectory-rate", type=float, default=10.0, metavar="FPS")
+    ap.add_argument("--fd-frames", choices=("steady", "all"), default="steady",
+                    help="fundamental-diagram samples from the steady state (default) or "
+                         "from every frame")
+    args = ap.parse_args(argv)
+    parts = [] if args.only_extra else ["corridor"]
+    parts += [p for p, on in (("bottleneck", args.bottleneck), ("free", args.free)) if on]
+    if not parts:
+        ap.error("nothing to run (--only-extra needs --bottleneck or --free)")
+    warnings.filterwarnings("ignore", module="pedpy")
+    results = run_validation(parse_param_overrides(args.param), args.preset, parts=parts,
+                             data_dir=args.data, out_dir=args.out, t_end=args.t_end,
+                             trajectory_rate=args.trajectory_rate, fd_frames=args.fd_frames)
+    print(f"\nSFM validation: preset {args.preset or 'default'}, overrides "
+          f"{results['overrides'] or 'none'}")
+    for title, head, rows in tables(results):
+        print(f"\n{title}\n{_text_table(head, rows)}")
+    e = results["errors"]
+    print(f"\nRMS of {e['count']:.0f} relative errors {e['rms']:.3f}, failed runs "
+          f"{e['failed']:.0f}; total wall time {results['wall_s']:.1f} s")
+    write_report(results, args.out)
+    print(f"results in {args.out}/validation.json and validation.md")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,222 @@
+"""Start-area populations (pedmesh.population): distributions in room files, seeded draws,
+premovement in the social force and continuum models, per-agent speeds and radii, exit
+assignment."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pedmesh import Room
+from pedmesh.cli import main
+from pedmesh.errors import GeometryError
+from pedmesh.population import distribution_from_spec, draw_population
+
+
+def corridor(x0=12.0, x1=18.0, **area):
+    """A 30 x 4 m corridor with an exit at each end and a crowd in its middle (x0 to x1)."""
+    return Room(outline=[(0, 0), (30, 0), (30, 4), (0, 4)],
+                exits=[{"name": "west", "polyline": [(0, 0), (0, 4)]},
+                       {"name": "east", "polyline": [(30, 0), (30, 4)]}],
+                start_areas=[{"name": "crowd", "polygon": [(x0, 0), (x1, 0), (x1, 4), (x0, 4)],
+                              "spacing": 1.0, **area}])
+
+
+# ------------------------------------------------------------------ specifications
+@pytest.mark.parametrize("spec, mean", [
+    (5.0, 5.0),
+    ({"distribution": "uniform", "min": 10, "max": 20}, 15.0),
+    ({"distribution": "normal", "mean": 1.34, "sd": 0.26, "min": 0.0}, 1.34),
+    ({"distribution": "lognormal", "mu": np.log(30.0), "sigma": 0.5}, 30 * np.exp(0.125)),
+])
+def test_distributions_draw_what_they_say(spec, mean):
+    d = distribution_from_spec(spec, "premovement", "start area 'a'")
+    x = d.sample(np.random.default_rng(1), 40_000)
+    assert abs(x.mean() - mean) < 0.02 * mean
+    assert abs(d.mean_value - mean) < 1e-3 * mean
+    assert distribution_from_spec(d.to_spec(), "premovement", "a") == d
+
+
+def test_truncation_keeps_values_inside_and_renormalises():
+    d = distribution_from_spec({"distribution": "normal", "mean": 1.34, "sd": 0.26,
+                                "min": 1.0, "max": 1.6}, "speed", "a", positive=True)
+    x = d.sample(np.random.default_rng(2), 20_000)
+    assert x.min() >= 1.0 and x.max() <= 1.6
+    assert d.cdf(1.0) == pytest.approx(0.0, abs=1e-12) and d.cdf(1.6) == pytest.approx(1.0)
+    ln = distribution_from_spec({"distribution": "lognormal", "mu": 3.0, "sigma": 1.0,
+                                 "max": 60.0}, "premovement", "a")
+    y = ln.sample(np.random.default_rng(3), 20_000)
+    assert y.max() <= 60.0 and ln.cdf(60.0) == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("spec, match", [
+    ({"distribution": "gamma", "k": 2}, "unknown distribution 'gamma'"),
+    ({"distribution": "uniform", "min": 5}, "needs 'max'"),
+    ({"distribution": "uniform", "min": 5, "max": 5}, "'max' must exceed 'min'"),
+    ({"distribution": "normal", "mean": 1.3, "sd": 0.2}, "needs a 'min'"),
+    ({"distribution": "normal", "mean": 1.3, "sd": -0.2, "min": 0}, "'sd' must be positive"),
+    ({"distribution": "uniform", "min": -1, "max": 5}, "values must be >= 0"),
+    ({"distribution": "uniform", "min": 0, "max": 5, "mode": 1}, "unknown key 'mode'"),
+    ("fast", "must be a number or an object"),
+    ({"distribution": "normal", "mean": 1.3, "sd": 0.1, "min": 5.0, "max": 6.0},
+     "no mass between"),
+])
+def test_bad_distributions_are_clear_errors(spec, match):
+    with pytest.raises(GeometryError, match=match):
+        corridor(premovement=spec)
+
+
+def test_bad_radius_and_exits():
+    with pytest.raises(GeometryError, match="'radius': values must be positive"):
+        corridor(radius=0.0)
+    with pytest.raises(GeometryError, match="names 'north', which is not an exit"):
+        corridor(exits=["north"])
+    with pytest.raises(GeometryError, match="must add up to 1, got 0.9"):
+        corridor(exits={"west": 0.4, "east": 0.5})
+
+
+def test_bad_distribution_in_a_room_file_is_one_line(tmp_path, capsys):
+    data = {"outline": [[0, 0], [10, 0], [10, 4], [0, 4]],
+            "exits": [{"name": "e", "polyline": [[10, 0], [10, 4]]}],
+            "start_areas": [{"name": "a", "polygon": [[1, 1], [4, 1], [4, 3], [1, 3]],
+                             "spacing": 1, "speed": {"distribution": "uniform", "min": 1.5,
+                                                     "max": 1.0}}]}
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(data))
+    assert main(["run", str(path), "--model", "sfm", "-q", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.json" in err[0] and "start area 'a': 'speed'" in err[0]
+
+
+def test_room_file_round_trip(tmp_path):
+    from pedmesh.io import load_room, save_room
+
+    room = corridor(premovement={"distribution": "uniform", "min": 0, "max": 30},
+                    speed={"distribution": "normal", "mean": 1.34, "sd": 0.26, "min": 0.5},
+                    radius=0.2, exits={"west": 0.25, "east": 0.75})
+    again = load_room(save_room(room, tmp_path / "r.json"))
+    assert again == room
+    listed = corridor(exits=["east", "west"])
+    assert load_room(save_room(listed, tmp_path / "l.json")) == listed
+
+
+# ------------------------------------------------------------------ draws
+def test_draws_are_reproducible_and_independent_per_quantity():
+    room = corridor(premovement={"distribution": "uniform", "min": 0, "max": 30},
+                    exits={"west": 0.25, "east": 0.75})
+    a, b = draw_population(room, seed=7), draw_population(room, seed=7)
+    assert np.array_equal(a.premovement, b.premovement) and np.array_equal(a.target, b.target)
+    c = draw_population(room, seed=8)
+    assert not np.array_equal(a.premovement, c.premovement)
+    # adding a speed distribution does not change the premovement draws
+    more = corridor(premovement={"distribution": "uniform", "min": 0, "max": 30},
+                    exits={"west": 0.25, "east": 0.75}, speed=1.2)
+    assert np.array_equal(draw_population(more, seed=7).premovement, a.premovement)
+    # exact quotas: 24 people, a quarter to the west
+    counts = {t: int((a.target == k).sum()) for k, t in enumerate(a.targets)}
+    assert counts[("west",)] == 6 and counts[("east",)] == 18
+
+
+# ------------------------------------------------------------------ the social force model
+def _sfm(room, seed=0, t_end=None, **over):
+    from pedmesh.run.models import SFMRun
+
+    mesh = room.mesh(max_area=1.0)
+    run = SFMRun(room, mesh, over, seed=seed)
+    return run
+
+
+def test_premovement_delays_each_start_by_its_drawn_time():
+    # one row across the corridor, all heading east: nobody walks into someone waiting (in
+    # a crowd, those who start do push those still waiting)
+    room = corridor(14.5, 15.5, premovement={"distribution": "uniform", "min": 1.0, "max": 4.0},
+                    exits=["east"])
+    run = _sfm(room, seed=3)
+    sim = run.sim
+    tpre = dict(zip(sim.ids[:sim.n].tolist(), sim.tpre[:sim.n].tolist()))
+    x0 = {i: p for i, p in zip(sim.ids[:sim.n].tolist(), sim.x[:sim.n].copy())}
+    started = {}
+    while sim.t < 6.0:
+        sim.step()
+        for i, p in zip(sim.ids[:sim.n].tolist(), sim.x[:sim.n]):
+            # (along the corridor: the walls push the outer two sideways from the start)
+            if i not in started and p[0] - x0[i][0] > 0.05:
+                started[i] = sim.t
+    assert len(started) == len(tpre)  # everyone walks by 6 s
+    late = [started[i] - tpre[i] for i in started]
+    assert min(late) >= 0.0  # nobody moves 5 cm before their premovement time
+    assert max(late) < 0.5  # and everyone within half a second after it
+
+
+def test_exit_assignment_is_respected():
+    room = corridor(exits={"west": 0.25, "east": 0.75})
+    run = _sfm(room, seed=5)
+    sim = run.sim
+    target = {i: sim.toff[k] // room.mesh(max_area=1.0).n_triangles
+              for k, i in enumerate(sim.ids[:sim.n].tolist())}
+    groups = run.sim._targets
+    sim.run(60.0)
+    assert sim.n == 0
+    names = run.mesh.exit_names
+    for i, g in target.items():
+        assert names[sim.exit_id[i]] == groups[g][0]
+    assert np.sum(sim.exit_id == names.index("west")) == 6
+
+
+def test_exits_as_a_list_take_the_quickest_of_them():
+    room = corridor(exits=["east"])
+    run = _sfm(room)
+    run.sim.run(60.0)
+    assert run.sim.n == 0 and np.all(np.array(run.mesh.exit_names)[run.sim.exit_id] == "east")
+
+
+def test_free_speeds_and_radii_per_person():
+    room = corridor(speed={"distribution": "uniform", "min": 0.6, "max": 1.4}, radius=0.22)
+    run = _sfm(room, seed=1, speed_law="exponential", beta=1e-9)
+    sim = run.sim
+    assert np.all(sim.rad == 0.22) and 0.6 <= sim.u0.min() and sim.u0.max() <= 1.4
+    for _ in range(400):  # 4 s: everyone near their free speed (tau = 0.5 s)
+        sim.step()
+    u = {i: np.hypot(*v) for i, v in zip(sim.ids[:sim.n].tolist(), sim.v[:sim.n])}
+    u0 = dict(zip(sim.ids[:sim.n].tolist(), sim.u0[:sim.n].tolist()))
+    err = np.array([u[i] / u0[i] - 1 for i in u])
+    assert np.median(np.abs(err)) < 0.05
+    p = run.parameters()["population"]
+    assert p["radius_m"] == [0.22, 0.22, 0.22] and p["exit_groups"] == {"any": 24}
+
+
+def test_overlapping_large_bodies_are_refused():
+    from pedmesh.errors import SimulationError
+
+    room = corridor(radius=0.6)  # 1.2 m bodies on a 1 m lattice
+    with pytest.raises(SimulationError, match="overlap"):
+        _sfm(room)
+
+
+# ------------------------------------------------------------------ continuum models
+@pytest.mark.parametrize("model", ["rdue", "eos"])
+def test_continuum_premovement_is_a_delayed_source(model):
+    from pedmesh.run.models import MODELS
+
+    pre = corridor(premovement={"distribution": "uniform", "min": 5.0, "max": 10.0},
+                   speed=1.2)
+    mesh = pre.mesh(max_area=1.0)
+    run = MODELS[model](pre, mesh, {})
+    assert run.n_initial == pytest.approx(24.0, rel=1e-9) and run.waiting == run.n_initial
+    assert any("'speed' is not used" in w for w in run.warnings)
+    inside = []
+    while run.t < 12.0:
+        run.step(12.0)
+        walking = run.solver.mass(run.state.Q)
+        inside.append((run.t, walking, run.waiting))
+        assert abs(walking + run.waiting + run.evacuated - run.n_initial) < 1e-9
+    for t, walking, waiting in inside:
+        if t <= 5.0:
+            assert walking == 0.0
+        if t >= 10.0:
+            assert waiting == 0.0
+        if 5.0 < t < 10.0:
+            assert waiting == pytest.approx(24.0 * (10.0 - t) / 5.0, rel=1e-9)
+    assert run.max_mass_error < 1e-12
