@@ -11,7 +11,9 @@ density rho [ped/m^2], shared by the social force model and every continuum mode
   free speed 1.34 m/s).
 
 Compiled kernels take the law as a small float64 array (:attr:`SpeedLaw.array`:
-``[kind, beta, rho_jam, gamma_w]``) and the free speed ``U_f`` separately (so that it can be
+``[kind, beta, rho_jam, gamma_w, shift]``, the law evaluated at ``rho - shift``: the social
+force model subtracts a pedestrian's own share of its kernel density with
+``density_self=0``) and the free speed ``U_f`` separately (so that it can be
 one number or one per pedestrian); :func:`shape` and :func:`flux_and_slope` evaluate it
 inside them.
 """
@@ -40,6 +42,7 @@ SPEED_LAWS = {"exponential": EXPONENTIAL, "weidmann": WEIDMANN}
 @nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def shape(law, rho):
     """g(rho) = U_e(rho) / U_f of the law array ``law`` at density ``rho`` [ped/m^2]."""
+    rho = rho - law[4]
     if law[0] == EXPONENTIAL:
         return math.exp(-law[1] * max(rho, 0.0))
     if rho <= 0.0:
@@ -51,7 +54,8 @@ def shape(law, rho):
 
 @nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def flux_and_slope(law, U_f, rho):
-    """The flow f(rho) = rho U_f g(rho) [ped/(m s)] at rho = max(rho, 0) and |f'(rho)| [m/s]."""
+    """The flow f(rho) = rho U_f g(rho) [ped/(m s)] at rho = max(rho, 0) and |f'(rho)| [m/s]
+    (the continuum models' laws have no shift)."""
     r = max(rho, 0.0)
     if law[0] == EXPONENTIAL:
         e = math.exp(-law[1] * r)
@@ -91,8 +95,8 @@ class SpeedLaw:
 
     @property
     def array(self) -> np.ndarray:
-        """``[kind, beta, rho_jam, gamma_w]`` for the compiled kernels."""
-        return np.array([self.kind, self.beta, self.rho_jam, self.gamma_w], float)
+        """``[kind, beta, rho_jam, gamma_w, 0]`` for the compiled kernels (no shift)."""
+        return np.array([self.kind, self.beta, self.rho_jam, self.gamma_w, 0.0], float)
 
     def __call__(self, rho) -> np.ndarray:
         """U_e(rho) [m/s]."""

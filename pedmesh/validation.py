@@ -25,8 +25,9 @@ The measurement (:func:`measure`), everything in SI units:
   cut-off, cells clipped to the walkable area), the individual speed from the displacement
   over +-:data:`SPEED_HALF_WINDOW_S` (5 frames at the experiments' 16 frames/s, 3 frames
   at a run's 10 frames/s), one-sided at the ends of a trajectory. The steady-state means
-  are the means over the steady-state frames; those frames' (density, speed) pairs are the
-  fundamental-diagram samples (:func:`bin_fd` bins them).
+  are the means over the steady-state frames; those frames' (density, speed) pairs, or
+  with ``fd_frames="all"`` every frame's, are the fundamental-diagram samples
+  (:func:`bin_fd` bins them).
 
 PedPy is imported inside the functions, so ``import pedmesh.validation`` works without it;
 a function that needs it raises :class:`~pedmesh.errors.ParameterError` naming the extra
@@ -295,6 +296,41 @@ def _frames(traj, first: int, last: int):
                                 frame_rate=traj.frame_rate)
 
 
+def _voronoi_cells(part, walkable):
+    """PedPy's Voronoi cells of every row of ``part``. A frame on which GEOS fails (a
+    degenerate diagram, e.g. a start lattice with four people on one circle) is found by
+    bisection and computed again with the positions moved by at most 1e-6 m (seeded by
+    the frame number); a frame that fails even so is left out."""
+    import pandas as pd
+    from shapely.errors import GEOSException
+
+    pedpy = _pedpy()
+    try:
+        return pedpy.compute_individual_voronoi_polygons(traj_data=part, walkable_area=walkable)
+    except GEOSException:
+        pass
+    df = part.data
+    frames = np.sort(df[pedpy.FRAME_COL].unique())
+    if len(frames) > 1:
+        half = frames[len(frames) // 2]
+        return pd.concat([_voronoi_cells(_frames(part, frames[0], half - 1), walkable),
+                          _voronoi_cells(_frames(part, half, frames[-1]), walkable)],
+                         ignore_index=True)
+    rng = np.random.default_rng(int(frames[0]))
+    moved = df.copy()
+    for col in (pedpy.X_COL, pedpy.Y_COL):
+        moved[col] = moved[col] + rng.uniform(-1e-6, 1e-6, len(moved))
+    moved = moved.drop(columns=[pedpy.POINT_COL], errors="ignore")
+    try:
+        cells = pedpy.compute_individual_voronoi_polygons(
+            traj_data=pedpy.TrajectoryData(data=moved, frame_rate=part.frame_rate),
+            walkable_area=walkable)
+    except GEOSException:
+        return pd.DataFrame(columns=[pedpy.ID_COL, pedpy.FRAME_COL, pedpy.POLYGON_COL,
+                                     pedpy.DENSITY_COL])
+    return cells
+
+
 def _voronoi_fd(traj, setup: MeasurementSetup, first: int, last: int,
                 half_window_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Frames, Voronoi density [1/m^2] and Voronoi speed [m/s] in the area per frame for
@@ -305,7 +341,7 @@ def _voronoi_fd(traj, setup: MeasurementSetup, first: int, last: int,
         return np.zeros(0, int), np.zeros(0), np.zeros(0)
     area = pedpy.MeasurementArea(list(setup.area))
     walkable = pedpy.WalkableArea(setup.walkable)
-    cells = pedpy.compute_individual_voronoi_polygons(traj_data=part, walkable_area=walkable)
+    cells = _voronoi_cells(part, walkable)
     density, inter = pedpy.compute_voronoi_density(individual_voronoi_data=cells,
                                                    measurement_area=area)
     speed_ind = _individual_speed(traj, half_window_s)

@@ -98,3 +98,25 @@ def test_every_model_takes_the_law(model):
         out[law] = run.evacuated
     # (mac2-local: its mean-field pressure pushes the crowd out too, 0.9 times as many)
     assert 0 < out["weidmann"] < (0.95 if model == "mac2-local" else 0.8) * out["exponential"]
+
+
+@pytest.mark.parametrize("self_share", [1, 0])
+def test_a_lone_walker_and_its_own_density(self_share):
+    """With density_self=1 (the paper's eq3) a lone walker feels its own kernel density,
+    1/(pi R^2) = 0.65 /m^2, and walks at U_f g(0.65); with 0 it walks at U_f."""
+    from pedmesh import Room
+    from pedmesh.run.models import SFMRun
+
+    room = Room(outline=[(0, 0), (30, 0), (30, 2), (0, 2)],
+                exits=[{"name": "end", "polyline": [(30, 0), (30, 2)]}],
+                start_areas=[{"name": "one", "polygon": [(0.5, 0.5), (1.5, 0.5), (1.5, 1.5),
+                                                         (0.5, 1.5)], "count": 1}])
+    run = SFMRun(room, room.mesh(max_area=1.0), {"speed_law": "weidmann", "U_f": 1.34,
+                                                  "density_self": self_share})
+    for _ in range(500):  # 5 s: ten relaxation times
+        run.sim.step()
+    speed = float(np.hypot(*run.sim.v[0]))
+    w0 = 1.0 / (math.pi * 0.7**2)
+    want = 1.34 * float(SpeedLaw("weidmann").shape(w0)) if self_share else 1.34
+    assert speed == pytest.approx(want, rel=2e-3)
+    assert (speed < 1.3) == bool(self_share)

@@ -100,6 +100,26 @@ def test_fd_frames_all_includes_the_steady_state():
         V.measure(_synthetic(), _long_corridor(), fd_frames="some")
 
 
+def test_voronoi_survives_a_geos_failure(monkeypatch):
+    """A frame on which GEOS fails is computed again with positions moved by <= 1e-6 m."""
+    pedpy = pytest.importorskip("pedpy")
+    from shapely.errors import GEOSException
+
+    real = pedpy.compute_individual_voronoi_polygons
+    bad_frame = 60  # inside the steady state
+
+    def flaky(*, traj_data, walkable_area, **kw):
+        rows = traj_data.data[traj_data.data.frame == bad_frame]
+        if np.any(rows.x.to_numpy() == 0.45):  # the exact lattice, not the moved one
+            raise GEOSException("TopologyException: found non-noded intersection")
+        return real(traj_data=traj_data, walkable_area=walkable_area, **kw)
+
+    monkeypatch.setattr(pedpy, "compute_individual_voronoi_polygons", flaky)
+    m = V.measure(_synthetic(), _long_corridor())
+    _check_lattice(m)
+    assert np.any(np.isclose(m["fd_time_s"], bad_frame / RATE))
+
+
 def test_quantile_flow_definition():
     # 10 crossings, 1 s apart except a 3 s gap: k_0.2 = 2, k_0.8 = 8
     t = [0, 1, 2, 3, 6, 7, 8, 9, 10, 11]

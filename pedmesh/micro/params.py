@@ -36,9 +36,16 @@ class SocialForceParams:
     speed_law: str = "exponential"
     rho_jam: float = 5.4  #: jam density [ped/m^2] of the Weidmann law
     gamma_w: float = 1.913  #: [ped/m^2] of the Weidmann law
+    #: 1: U_e is evaluated at the kernel density with the pedestrian's own share, as in the
+    #: paper (eq3: a lone walker feels 1/(pi R^2) = 0.65 /m^2); 0: without it (a lone
+    #: walker walks at U_f)
+    density_self: float = 1.0
 
     def __post_init__(self) -> None:
-        _check_positive(self, skip=("speed_law",))
+        _check_positive(self, skip=("speed_law", "density_self"))
+        if self.density_self not in (0, 1) or isinstance(self.density_self, bool):
+            raise ParameterError(f"parameter 'density_self' must be 0 or 1, got "
+                                 f"{self.density_self!r}")
         self.speed  # (checks the law's name)
 
     @property
@@ -119,7 +126,8 @@ def _check_positive(obj: Any, skip: tuple[str, ...] = ()) -> None:
 #: parameters whose values are words, not numbers
 TEXT_PARAMS = {"exit", "calibration", "speed_law"}
 #: switches: 0/1 or false/true on the command line (read as 0.0/1.0)
-BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction"}
+BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction",
+               "density_self"}
 _BOOL_WORDS = {"0": 0.0, "1": 1.0, "false": 0.0, "true": 1.0}
 
 

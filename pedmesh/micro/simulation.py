@@ -171,6 +171,8 @@ class Simulation:
         self._cell_order = np.zeros(N, np.int64)
         self.walls = WallSet.from_mesh(mesh, self.rc_w)
         self._law = self.params.speed.array  # the desired-speed law (pedmesh.speed)
+        if not p.density_self:  # U_e of the density around a pedestrian, without its own
+            self._law[4] = 1.0 / (math.pi * p.R * p.R)
         # routes
         self.reroute = bool(reroute)
         if desired_velocity is not None:
