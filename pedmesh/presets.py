@@ -18,7 +18,9 @@ model everything).
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from .errors import ParameterError
@@ -67,6 +69,47 @@ _PAPER_VALUES = {
     "kappa": Value(2.4e5, "kg/(m s)", TABLE1),
 }
 
+#: units of the parameters a preset may set
+UNITS = {"speed_law": "", "U_f": "m/s", "beta": "m^2/ped", "rho_jam": "ped/m^2",
+         "gamma_w": "ped/m^2", "density_self": "", "tau": "s", "m": "kg", "r": "m", "R": "m",
+         "A": "N", "B": "m", "k": "kg/s^2", "kappa": "kg/(m s)", "calibration": ""}
+DATA = Path(__file__).resolve().parent / "data"
+FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
+       "(benchmarks/fit_validated.py -> pedmesh/data/validated.json)")
+
+
+def _validated() -> "Preset | None":
+    """The ``validated`` preset from the fit's record ``pedmesh/data/validated.json`` (None
+    without it): Table 1 for what the fit left alone, Weidmann's law with the fitted values,
+    and for ``eos`` the equation of state measured with these parameters
+    (``pedmesh/data/eos_validated.json``)."""
+    path = DATA / "validated.json"
+    if not path.is_file():
+        return None
+    fit = json.loads(path.read_text())
+    fitted = set(fit.get("fitted", []))
+    values = {k: v for k, v in _PAPER_VALUES.items() if k != "beta"}
+    for k, v in fit["parameters"].items():
+        if k in fitted:
+            src = FIT
+        elif k == "U_f":
+            src = WEIDMANN + "; free walking speed 1.34 m/s"
+        elif k == "density_self":
+            src = "pedmesh: U_e without one's own kernel share, so a lone walker walks at U_f"
+        elif k in ("speed_law", "rho_jam", "gamma_w"):
+            src = WEIDMANN
+        else:
+            src = values[k].source if k in values else FIT
+        values[k] = Value(v, UNITS.get(k, ""), src)
+    eos = DATA / "eos_validated.json"
+    if eos.is_file():
+        values["calibration"] = Value(str(eos), "", "pedmesh calibrate --preset validated "
+                                                    "(the eos model's equation of state)")
+    return Preset("validated", "fitted to real crowds (Juelich corridor experiments, "
+                               "bottleneck flows, free walking speed); see "
+                               "docs/validation/", values)
+
+
 PRESETS: dict[str, Preset] = {
     "paper": Preset(
         "paper", "the paper's Table 1, exactly (the model defaults; the paper's examples "
@@ -81,6 +124,9 @@ PRESETS: dict[str, Preset] = {
          "rho_jam": Value(5.4, "ped/m^2", WEIDMANN),
          "gamma_w": Value(1.913, "ped/m^2", WEIDMANN)}),
 }
+
+if (_v := _validated()) is not None:
+    PRESETS["validated"] = _v
 
 #: the preset of a run that names none (neither the command nor the room file)
 DEFAULT_PRESET = "paper"

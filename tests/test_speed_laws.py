@@ -120,3 +120,23 @@ def test_a_lone_walker_and_its_own_density(self_share):
     want = 1.34 * float(SpeedLaw("weidmann").shape(w0)) if self_share else 1.34
     assert speed == pytest.approx(want, rel=2e-3)
     assert (speed < 1.3) == bool(self_share)
+
+
+def test_rdue_with_a_jam_density_piles_no_one_above_it(load_shipped):
+    """RDUE on the paper's Example 3: with the exponential law (no jam density) cells at
+    the obstacle's corners and the exits fill to tens of people per m^2; with Weidmann's
+    law the density stays at the jam density (within the reconstruction's overshoot)."""
+    from pedmesh.run.models import MODELS
+
+    room = load_shipped("example3.json")
+    mesh = room.mesh()
+    peak = {}
+    for law in ("exponential", "weidmann"):
+        run = MODELS["rdue"](room, mesh, {"speed_law": law})
+        top = 0.0
+        while not run.done and run.t < 300:
+            run.step()
+            top = max(top, float(run.state.Q[:, 0].max()))
+        peak[law] = top
+    assert peak["exponential"] > 20.0
+    assert peak["weidmann"] <= 1.05 * 5.4

@@ -321,4 +321,6 @@ def test_dense_frames_interpolate_the_states_around_them(geometries_dir, tmp_pat
         assert [t for t, _ in index] == [float(k) for k in range(7)]
         rho[dense] = [pv.read(f).cell_data["rho"] for _, f in index]
     for a, b in zip(rho[0], rho[1]):
-        assert np.abs(a - b).max() <= 0.02 * a.max()  # (measured: under 0.7 %)
+        # L1 (the people placed differently): measured under 0.2 % with the paper's
+        # parameters, under 0.5 % with Weidmann's law (where a front's cell can differ by 5 %)
+        assert np.abs(a - b).sum() <= 0.01 * a.sum()
