@@ -12,6 +12,12 @@ model everything).
 * ``weidmann``: the paper's social force model with the desired speed of Weidmann's
   fundamental diagram (free speed 1.34 m/s, jam density 5.4 /m^2). Literature values, not
   fitted to experiments.
+* ``validated`` (the default): Weidmann's law with the free speed 1.34 m/s felt without
+  one's own kernel share (``density_self=0``), ``gamma_w``, ``rho_jam`` and ``tau`` fitted by
+  ``benchmarks/fit_validated.py`` to the Juelich corridor runs, bottleneck flows and the
+  fundamental diagram (``pedmesh/data/validated.json``; the table in
+  ``docs/validation/fit.md``), Table 1 otherwise; ``eos`` takes the equation of state
+  measured with these parameters (``pedmesh/data/eos_validated.json``).
 
 ``pedmesh presets`` lists them with values, units and sources.
 """
@@ -71,7 +77,7 @@ _PAPER_VALUES = {
 
 #: units of the parameters a preset may set
 UNITS = {"speed_law": "", "U_f": "m/s", "beta": "m^2/ped", "rho_jam": "ped/m^2",
-         "gamma_w": "ped/m^2", "density_self": "", "tau": "s", "m": "kg", "r": "m", "R": "m",
+         "gamma_w": "ped/m^2", "density_self": "0/1", "tau": "s", "m": "kg", "r": "m", "R": "m",
          "A": "N", "B": "m", "k": "kg/s^2", "kappa": "kg/(m s)", "calibration": ""}
 DATA = Path(__file__).resolve().parent / "data"
 FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
@@ -90,6 +96,8 @@ def _validated() -> "Preset | None":
     fitted = set(fit.get("fitted", []))
     values = {k: v for k, v in _PAPER_VALUES.items() if k != "beta"}
     for k, v in fit["parameters"].items():
+        if k not in UNITS:  # (not a model parameter, e.g. the preset the fit started from)
+            continue
         if k in fitted:
             src = FIT
         elif k == "U_f":
@@ -129,7 +137,7 @@ if (_v := _validated()) is not None:
     PRESETS["validated"] = _v
 
 #: the preset of a run that names none (neither the command nor the room file)
-DEFAULT_PRESET = "paper"
+DEFAULT_PRESET = "validated"
 
 
 def get_preset(name: str) -> Preset:

@@ -84,7 +84,7 @@ def test_bad_preset_in_room_file_or_command_is_one_line(tmp_path, geometries_dir
     assert main(["run", str(good), "--model", "rdue", "-q", "--preset", "x",
                  "--out", str(tmp_path / "b")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["pedmesh: error: unknown preset 'x' (presets: paper, weidmann)"]
+    assert err == [f"pedmesh: error: unknown preset 'x' (presets: {', '.join(PRESETS)})"]
 
 
 def test_room_file_round_trip_keeps_the_preset(tmp_path, geometries_dir):
@@ -126,3 +126,26 @@ def test_calibrate_takes_a_preset(tmp_path, monkeypatch):
                "-o", str(tmp_path / "e.json")])
     assert rc == 130
     assert seen["params"].A == 1500 and seen["params"].r == 0.15
+
+
+def test_validated_is_the_fit_and_the_default():
+    """The validated preset is the fit's record (pedmesh/data/validated.json), the default,
+    and its eos calibration was measured with its social force parameters."""
+    from pedmesh.presets import DATA
+
+    fit = json.loads((DATA / "validated.json").read_text())
+    pre = get_preset("validated")
+    assert DEFAULT_PRESET == "validated"
+    for k, v in fit["parameters"].items():
+        if k != "preset":  # (the preset the fit started from)
+            assert pre.values[k].value == v
+    for k in fit["fitted"]:
+        assert pre.values[k].source.startswith("fitted")
+    assert pre.values["speed_law"].value == "weidmann" and pre.values["U_f"].value == 1.34
+    assert pre.values["density_self"].value == 0
+    cal = json.loads((DATA / "eos_validated.json").read_text())
+    assert pre.values["calibration"].value == str(DATA / "eos_validated.json")
+    assert cal["status"] == "complete"
+    for k, v in cal["parameters"].items():
+        if k in pre.values:
+            assert v == pytest.approx(pre.values[k].value), k
