@@ -25,6 +25,7 @@ model everything).
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -77,8 +78,9 @@ _PAPER_VALUES = {
 
 #: units of the parameters a preset may set
 UNITS = {"speed_law": "", "U_f": "m/s", "beta": "m^2/ped", "rho_jam": "ped/m^2",
-         "gamma_w": "ped/m^2", "density_self": "0/1", "tau": "s", "m": "kg", "r": "m", "R": "m",
-         "A": "N", "B": "m", "k": "kg/s^2", "kappa": "kg/(m s)", "calibration": ""}
+         "gamma_w": "ped/m^2", "rho_shift": "ped/m^2", "density_self": "0/1", "tau": "s",
+         "m": "kg", "r": "m", "R": "m", "A": "N", "B": "m", "k": "kg/s^2",
+         "kappa": "kg/(m s)", "calibration": ""}
 DATA = Path(__file__).resolve().parent / "data"
 FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
        "(benchmarks/fit_validated.py -> pedmesh/data/validated.json)")
@@ -109,6 +111,13 @@ def _validated() -> "Preset | None":
         else:
             src = values[k].source if k in values else FIT
         values[k] = Value(v, UNITS.get(k, ""), src)
+    # the continuum models: the same law, shifted by the kernel share the social force model
+    # leaves out, so that both have one fundamental diagram
+    if not fit["parameters"].get("density_self", 1):
+        R = float(fit["parameters"].get("R", _PAPER_VALUES["R"].value))
+        values["rho_shift"] = Value(round(1.0 / (math.pi * R * R), 6), "ped/m^2",
+                                    "1/(pi R^2): the continuum models' law at rho - 1/(pi R^2),"
+                                    " the validated SFM's fundamental diagram")
     eos = DATA / "eos_validated.json"
     if eos.is_file():
         values["calibration"] = Value(str(eos), "", "pedmesh calibrate --preset validated "

@@ -54,9 +54,24 @@ def shape(law, rho):
 
 @nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def flux_and_slope(law, U_f, rho):
-    """The flow f(rho) = rho U_f g(rho) [ped/(m s)] at rho = max(rho, 0) and |f'(rho)| [m/s]
-    (the continuum models' laws have no shift)."""
+    """The flow f(rho) = rho U_f g(rho - shift) [ped/(m s)] at rho = max(rho, 0) and
+    |f'(rho)| [m/s]."""
     r = max(rho, 0.0)
+    s = law[4]
+    if s > 0.0:  # the shifted law (below the shift: free flow)
+        x = r - s
+        if law[0] == EXPONENTIAL:
+            if x <= 0.0:
+                return r * U_f, U_f
+            e = math.exp(-law[1] * x)
+            return r * U_f * e, abs(U_f * (1.0 - law[1] * r) * e)
+        if x <= 0.0:
+            return r * U_f, U_f
+        if x >= law[2]:
+            return 0.0, 0.0
+        e = math.exp(-law[3] * (1.0 / x - 1.0 / law[2]))
+        # f' = U_f (g + r g'(x)) with g' = -(gamma_w / x^2) e
+        return U_f * r * (1.0 - e), abs(U_f * (1.0 - e - law[3] * r / (x * x) * e))
     if law[0] == EXPONENTIAL:
         e = math.exp(-law[1] * r)
         return r * U_f * e, abs(U_f * (1.0 - law[1] * r) * e)
@@ -78,8 +93,14 @@ class SpeedLaw:
     beta: float = 0.05  #: [m^2/ped] (exponential)
     rho_jam: float = 5.4  #: jam density [ped/m^2] (weidmann)
     gamma_w: float = 1.913  #: [ped/m^2] (weidmann)
+    #: [ped/m^2] the law is evaluated at rho - shift (free flow below it): a continuum
+    #: model's match to a social force model that feels U_e without its own kernel share
+    shift: float = 0.0
 
     def __post_init__(self) -> None:
+        if isinstance(self.shift, bool) or not isinstance(self.shift, (int, float)) or not (
+                math.isfinite(self.shift) and self.shift >= 0):
+            raise ParameterError(f"parameter 'rho_shift' must be >= 0, got {self.shift!r}")
         if self.name not in SPEED_LAWS:
             raise ParameterError(f"unknown speed law '{self.name}' (laws: "
                                  f"{', '.join(SPEED_LAWS)})")
@@ -95,8 +116,8 @@ class SpeedLaw:
 
     @property
     def array(self) -> np.ndarray:
-        """``[kind, beta, rho_jam, gamma_w, 0]`` for the compiled kernels (no shift)."""
-        return np.array([self.kind, self.beta, self.rho_jam, self.gamma_w, 0.0], float)
+        """``[kind, beta, rho_jam, gamma_w, shift]`` for the compiled kernels."""
+        return np.array([self.kind, self.beta, self.rho_jam, self.gamma_w, self.shift], float)
 
     def __call__(self, rho) -> np.ndarray:
         """U_e(rho) [m/s]."""
@@ -104,7 +125,7 @@ class SpeedLaw:
 
     def shape(self, rho) -> np.ndarray:
         """g(rho) = U_e(rho) / U_f."""
-        r = np.maximum(np.asarray(rho, float), 0.0)
+        r = np.maximum(np.asarray(rho, float) - self.shift, 0.0)
         if self.kind == EXPONENTIAL:
             return np.exp(-self.beta * r)
         with np.errstate(divide="ignore", over="ignore"):
@@ -126,11 +147,12 @@ class SpeedLaw:
     @property
     def capacity_density(self) -> float:
         """The density [ped/m^2] of the largest flow (1/beta for the exponential law)."""
-        if self.kind == EXPONENTIAL:
+        if self.kind == EXPONENTIAL and 1.0 / self.beta >= self.shift:
             return 1.0 / self.beta
         from scipy.optimize import minimize_scalar
 
-        res = minimize_scalar(lambda r: -float(self.flow(r)), bounds=(1e-6, self.rho_jam),
+        top = self.shift + (self.rho_jam if self.kind == WEIDMANN else 10.0 / self.beta)
+        res = minimize_scalar(lambda r: -float(self.flow(r)), bounds=(1e-6, top),
                               method="bounded", options={"xatol": 1e-10})
         return float(res.x)
 
@@ -141,10 +163,11 @@ class SpeedLaw:
 
     def parameters(self) -> dict[str, float | str]:
         """The parameters this law uses (for summaries)."""
+        extra = {"rho_shift": self.shift} if self.shift else {}
         if self.kind == EXPONENTIAL:
-            return {"speed_law": self.name, "U_f": self.U_f, "beta": self.beta}
+            return {"speed_law": self.name, "U_f": self.U_f, "beta": self.beta, **extra}
         return {"speed_law": self.name, "U_f": self.U_f, "rho_jam": self.rho_jam,
-                "gamma_w": self.gamma_w}
+                "gamma_w": self.gamma_w, **extra}
 
 
 def speed_law_from(params) -> SpeedLaw:

@@ -34,7 +34,9 @@ def test_exponential_is_the_papers_law():
 
 
 @pytest.mark.parametrize("law", [SpeedLaw(), SpeedLaw("weidmann", U_f=1.34),
-                                 SpeedLaw("weidmann", U_f=1.2, rho_jam=6.0, gamma_w=1.5)])
+                                 SpeedLaw("weidmann", U_f=1.2, rho_jam=6.0, gamma_w=1.5),
+                                 SpeedLaw("weidmann", U_f=1.34, rho_jam=5.222, gamma_w=2.2,
+                                          shift=0.65), SpeedLaw(shift=0.65)])
 def test_kernels_match_the_formulas(law):
     a = law.array
     rho = np.concatenate([[0.0, 1e-9, 1e-3], np.linspace(0.05, 8.0, 157)])
@@ -44,7 +46,8 @@ def test_kernels_match_the_formulas(law):
     assert np.allclose(fd[:, 0], law.flow(rho), rtol=1e-13, atol=1e-15)
     # |f'| against centred differences where f is smooth (away from 0 and rho_jam)
     h = 1e-6
-    inner = (rho > 1e-2) & (np.abs(rho - law.rho_jam) > 1e-3)
+    inner = ((rho > 1e-2) & (np.abs(rho - law.shift - law.rho_jam) > 1e-3)
+             & (np.abs(rho - law.shift) > 1e-3))
     num = (law.flow(rho + h) - law.flow(rho - h)) / (2 * h)
     assert np.allclose(fd[inner, 1], np.abs(num[inner]), rtol=1e-6, atol=1e-8)
 
@@ -140,3 +143,20 @@ def test_rdue_with_a_jam_density_piles_no_one_above_it(load_shipped):
         peak[law] = top
     assert peak["exponential"] > 20.0
     assert peak["weidmann"] <= 1.05 * 5.4
+
+
+def test_the_shifted_law_is_the_validated_sfms_diagram():
+    """A continuum law shifted by 1/(pi R^2) gives, at a crowd density rho, the speed the
+    social force model wants there with density_self=0 (its kernel density of a crowd is
+    rho, less its own share); with the validated preset the continuum models get it."""
+    from pedmesh.presets import get_preset
+
+    v = get_preset("validated").values
+    w0 = 1.0 / (math.pi * 0.7**2)
+    assert v["rho_shift"].value == pytest.approx(w0, rel=1e-6)
+    law = SpeedLaw("weidmann", U_f=1.34, rho_jam=v["rho_jam"].value,
+                   gamma_w=v["gamma_w"].value, shift=v["rho_shift"].value)
+    sfm = SpeedLaw("weidmann", U_f=1.34, rho_jam=v["rho_jam"].value, gamma_w=v["gamma_w"].value)
+    rho = np.linspace(0.0, 6.0, 61)
+    assert np.allclose(law(rho), sfm(np.maximum(rho - w0, 0.0)), rtol=1e-6)
+    assert law.capacity > 1.4 * sfm.capacity  # (the shift raises the capacity)

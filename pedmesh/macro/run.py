@@ -80,7 +80,7 @@ _TEXT = {"calibration", "exit", "speed_law"}
 _SWITCHES = {"walls", "friction", "split_friction"}
 _POSITIVE = {"U_f", "beta", "tau", "rho_cut", "u_max", "A", "B", "k", "kappa", "m", "r",
              "cutoff", "lr_strength", "lr_length", "gamma1", "rho_jam", "gamma_w"}
-_NON_NEGATIVE = {"c0"}
+_NON_NEGATIVE = {"c0", "rho_shift"}
 _OPTIONAL = {"u_max", "gamma1"}  #: None: derived from the other parameters
 
 

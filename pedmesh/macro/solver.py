@@ -25,6 +25,7 @@ controller.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Callable
@@ -295,10 +296,10 @@ class FVSolver:
 
         rho_v = _vertex_averaging(self.mesh) @ np.maximum(Q[:, 0], 0.0)
         speed = self.model.speed
-        if speed.name == "exponential":
+        if speed.name == "exponential" and not speed.shift:
             cost = np.exp(speed.beta * rho_v) / speed.U_f
-        else:
-            cost = speed.route_cost(rho_v)
+        else:  # (unshifted: the social force model's routes see the crowd's density too)
+            cost = dataclasses.replace(speed, shift=0.0).route_cost(rho_v)
         self.phi = self._eikonal.solve(cost)
         df = DirectionField(self.mesh, self.phi)
         m = self.mesh.n_triangles

@@ -316,11 +316,13 @@ def test_dense_frames_interpolate_the_states_around_them(geometries_dir, tmp_pat
         out = tmp_path / f"d{dense}"
         assert main(["run", str(geometries_dir / "l_shaped.json"), "--model", "eos", "--out",
                      str(out), "-q", "--t-end", "6", "--param", f"dense_frames={dense}",
-                     "--max-area", "2"]) == 0
+                     "--max-area", "2", "--preset", "paper"]) == 0
         index = read_pvd_index(out / "density.pvd")
         assert [t for t, _ in index] == [float(k) for k in range(7)]
         rho[dense] = [pv.read(f).cell_data["rho"] for _, f in index]
     for a, b in zip(rho[0], rho[1]):
-        # L1 (the people placed differently): measured under 0.2 % with the paper's
-        # parameters, under 0.5 % with Weidmann's law (where a front's cell can differ by 5 %)
+        # L1: measured under 0.2 % with the paper's parameters. (The two runs take different
+        # steps, so this also holds the difference of their own time errors, which grows
+        # with the dynamics: 1.6 % by 6 s under the validated preset's tau = 0.3 s. The
+        # interpolation itself is checked exactly above.)
         assert np.abs(a - b).sum() <= 0.01 * a.sum()

@@ -72,7 +72,7 @@ class Mac1(BarotropicModel):
     friction_substep = 1.0
 
     def __init__(self, *, U_f=1.034, beta=0.05, tau=0.5, rho_cut=1e-3, u_max=None,
-                 speed_law="exponential", rho_jam=5.4, gamma_w=1.913,
+                 speed_law="exponential", rho_jam=5.4, gamma_w=1.913, rho_shift=0.0,
                  walls: float = 1.0, friction: float = 1.0, cutoff: float = 1.0,
                  split_friction: float = 1.0, **sfm) -> None:
         unknown = set(sfm) - set(_SFM_KEYS)
@@ -84,7 +84,7 @@ class Mac1(BarotropicModel):
         self.gamma2 = gamma2(self.psi)
         super().__init__("mac1", PressureLaw.speed_only(self.gamma1), U_f=U_f, beta=beta,
                          tau=tau, rho_cut=rho_cut, u_max=u_max, speed_law=speed_law,
-                         rho_jam=rho_jam, gamma_w=gamma_w)
+                         rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift)
         self.walls = bool(walls)
         self.use_friction = bool(friction)
         self.split_friction = bool(split_friction)
@@ -167,7 +167,7 @@ class Mac2(BarotropicModel):
 
     def __init__(self, name: str, *, local: bool, friction: bool, U_f=1.034, beta=0.05,
                  tau=0.5, rho_cut=1e-3, u_max=None, speed_law="exponential", rho_jam=5.4,
-                 gamma_w=1.913, lr_strength: float = 0.01,
+                 gamma_w=1.913, rho_shift=0.0, lr_strength: float = 0.01,
                  lr_length: float = 1.0, gamma1: float | None = None, **sfm) -> None:
         unknown = set(sfm) - set(_SFM_KEYS)
         if unknown:
@@ -189,7 +189,8 @@ class Mac2(BarotropicModel):
         self.lr = LongRange(strength=float(lr_strength), length=float(lr_length))
         law = PressureLaw.quadratic(self.gamma1) if local else PressureLaw.isothermal(0.0)
         super().__init__(name, law, U_f=U_f, beta=beta, tau=tau, rho_cut=rho_cut, u_max=u_max,
-                         speed_law=speed_law, rho_jam=rho_jam, gamma_w=gamma_w)
+                         speed_law=speed_law, rho_jam=rho_jam, gamma_w=gamma_w,
+                         rho_shift=rho_shift)
         self.op = None
 
     def bind(self, mesh) -> None:
