@@ -616,14 +616,8 @@ def _reconstruct3_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs, p
             out_int[i, p - 6, 1] = vb
             out_int[i, p - 6, 2] = vc
     if limit and mn < rho_eps:  # Zhang-Shu: scale the density's deviations (rare)
-        th = zhang_shu_theta(qa, mn, rho_eps)
-        for p in range(9):
-            x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
-            va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
-            if p < 6:
-                out_edge[slot[i, p], 0] = va
-            else:
-                out_int[i, p - 6, 0] = va
+        _write_scaled_density(i, qa, zhang_shu_theta(qa, mn, rho_eps), A0, A1, A2, A3, A4,
+                              point_xy, mxx, mxy, myy, out_edge, slot, out_int)
 
 
 @nb.njit(**PAR)
@@ -708,11 +702,20 @@ def _reconstruct1_cell(i, qbar, order, stencil, R, opt_degree, moments, pairs, p
         else:
             out_int[i, p - 6, 0] = va
     if limit and mn < rho_eps:  # Zhang-Shu: scale the deviations (rare)
-        th = zhang_shu_theta(qa, mn, rho_eps)
-        for p in range(9):
-            x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
-            va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
-            if p < 6:
-                out_edge[slot[i, p], 0] = va
-            else:
-                out_int[i, p - 6, 0] = va
+        _write_scaled_density(i, qa, zhang_shu_theta(qa, mn, rho_eps), A0, A1, A2, A3, A4,
+                              point_xy, mxx, mxy, myy, out_edge, slot, out_int)
+
+
+@nb.njit(**FAST, inline="always")
+def _write_scaled_density(i, qa, th, A0, A1, A2, A3, A4, point_xy, mxx, mxy, myy, out_edge,
+                          slot, out_int):
+    """Rewrite the density at cell ``i``'s 9 points with its deviations from the mean ``qa``
+    scaled by ``th`` (the Zhang-Shu limiter of :func:`_reconstruct3` and
+    :func:`_reconstruct1`)."""
+    for p in range(9):
+        x, y, bxx, bxy, byy = _basis(point_xy, i, p, mxx, mxy, myy)
+        va = qa + th * (A0 * x + A1 * y + A2 * bxx + A3 * bxy + A4 * byy)
+        if p < 6:
+            out_edge[slot[i, p], 0] = va
+        else:
+            out_int[i, p - 6, 0] = va

@@ -134,9 +134,9 @@ class MacroRun:
         self.warnings = list(getattr(self.model, "warnings", []))
         self.solver = FVSolver(mesh, self.model, self.fv_options)
         #: start areas with a premovement time: (their density (m,) [ped/m^2], the
-        #: distribution); their people appear where they stand, at rest, as the
-        #: distribution's CDF grows (a delayed source)
-        self._delayed: list[tuple[np.ndarray, Any]] = []
+        #: distribution, their number of people [ped]); their people appear where they
+        #: stand, at rest, as the distribution's CDF grows (a delayed source)
+        self._delayed: list[tuple[np.ndarray, Any, float]] = []
         if rho0 is None:
             if room is None or not room.start_areas:
                 raise SimulationError("no initial crowd: the room has no start areas")
@@ -147,7 +147,8 @@ class MacroRun:
                     rho0 += rho_a
                 else:
                     rho0 += rho_a * float(a.premovement.cdf(0.0))
-                    self._delayed.append((rho_a, a.premovement))
+                    self._delayed.append((rho_a, a.premovement,
+                                          self.solver.mass(rho_a[:, None])))
             self._note_population(room)
         self.state = FVState(self.model.initial_state(rho0))
         self.controller = FVController(self.solver, self.state)
@@ -182,8 +183,7 @@ class MacroRun:
     def waiting(self) -> float:
         """Pedestrians [ped] who have not started yet (premovement)."""
         t = self.state.t
-        return float(sum(self.solver.mass(rho[:, None]) * (1.0 - float(d.cdf(t)))
-                         for rho, d in self._delayed))
+        return float(sum(n * (1.0 - float(d.cdf(t))) for _, d, n in self._delayed))
 
     def _note_population(self, room) -> None:
         """Warnings for what a continuum model cannot represent of the start areas."""
@@ -217,7 +217,7 @@ class MacroRun:
         if self._delayed:  # the people whose premovement ended within the step start, at rest
             t1 = self.state.t
             add = np.zeros(len(self.state.Q))
-            for rho, d in self._delayed:
+            for rho, d, _ in self._delayed:
                 add += rho * float(d.cdf(t1) - d.cdf(t0))
             self.state.Q[:, 0] += add
             self.controller.mass0 += self.solver.mass(add[:, None])
