@@ -418,6 +418,13 @@ def add_point_mean(S, dQ, cact):
             dQ[i, v] += (S[3 * i, v] + S[3 * i + 1, v] + S[3 * i + 2, v]) / 3.0
 
 
+@nb.njit(**PAR)
+def launch_threads(a):
+    """A trivial parallel loop (``a[i] = i``): running it starts numba's threading layer."""
+    for i in nb.prange(a.shape[0]):
+        a[i] = i
+
+
 @nb.njit(**FAST)
 def cell_total(areas, Q):
     """sum_i |T_i| Q[i, 0]: the number of pedestrians in the cells [ped]. (A compiled loop,

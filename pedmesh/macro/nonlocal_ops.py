@@ -231,12 +231,12 @@ def _tri_distances(tri_pts, I, J, out):
         out[p] = best
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)  # (each pair writes only its own row: no race)
 def _all_pairs(tri_pts, I, J, dist, k_range, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf, Gam_max,
                Fg_inf, want_w, want_k, h0, gl_x, gl_w, W, K):
-    w = np.empty(2)
-    k = np.empty((2, 2))
-    for p in range(I.shape[0]):
+    for p in nb.prange(I.shape[0]):
+        w = np.empty(2)
+        k = np.empty((2, 2))
         wk = want_k and dist[p] < k_range
         pair_integral(tri_pts[I[p]], tri_pts[J[p]], FG, Qt, Gam, dr, r_max, FG_inf, Q_inf,
                       Gam_max, Fg_inf, want_w, wk, h0, gl_x, gl_w, w, k)
@@ -246,6 +246,20 @@ def _all_pairs(tri_pts, I, J, dist, k_range, FG, Qt, Gam, dr, r_max, FG_inf, Q_i
         K[p, 0] = k[0, 0]
         K[p, 1] = 0.5 * (k[0, 1] + k[1, 0])
         K[p, 2] = k[1, 1]
+
+
+@nb.njit(cache=True, parallel=True)  # (each pair writes only its own row: no race)
+def _image_pairs(tri_pts, img, near, A, B, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf, Gam_max,
+                 Fg_inf, h0, gl_x, gl_w, W):
+    """The repulsion integrals of cell ``near[A[p]]`` and wall image ``img[B[p]]`` into
+    ``W[p]``."""
+    for p in nb.prange(A.shape[0]):
+        w = np.empty(2)
+        k = np.empty((2, 2))
+        pair_integral(tri_pts[near[A[p]]], img[B[p]], FG, Qt, Gam, dr, r_max, FG_inf, Q_inf,
+                      Gam_max, Fg_inf, True, False, h0, gl_x, gl_w, w, k)
+        W[p, 0] = w[0]
+        W[p, 1] = w[1]
 
 
 @nb.njit(cache=True, inline="always")
@@ -454,6 +468,20 @@ def build_pair_operators(mesh: TriMesh, phi=None, psi=None, *, cutoff: float = 1
     return PairOperators(Wx, Wy, Kxx, Kxy, Kyy, Ix, Iy, len(I), time.perf_counter() - t0)
 
 
+def _merged_intervals(lo: np.ndarray, hi: np.ndarray, gap: float):
+    """The union of the intervals [lo_k, hi_k] [m] as sorted disjoint intervals (arrays of
+    their starts and ends); intervals less than ``gap`` apart are joined."""
+    order = np.argsort(lo, kind="stable")
+    out_lo, out_hi = [float(lo[order[0]])], [float(hi[order[0]])]
+    for a, b in zip(lo[order[1:]], hi[order[1:]]):
+        if a <= out_hi[-1] + gap:
+            out_hi[-1] = max(out_hi[-1], float(b))
+        else:
+            out_lo.append(float(a))
+            out_hi.append(float(b))
+    return np.array(out_lo), np.array(out_hi)
+
+
 def _image_operators(mesh, tab, cutoff, rad, h0, gl_x, gl_w, Q_inf, Gam_max):
     """Repulsion of every cell by the mirror images (across straight wall pieces) of the
     cells near that wall."""
@@ -482,8 +510,6 @@ def _image_operators(mesh, tab, cutoff, rad, h0, gl_x, gl_w, Q_inf, Gam_max):
         region = mesh.room.walkable
         shapely.prepare(region)
     rows, cols, vx, vy = [], [], [], []
-    w = np.empty(2)
-    k = np.empty((2, 2))
     for li in range(len(lines)):
         sel = walls[inv == li]
         nx_, ny_, offset = lines[li]
@@ -514,26 +540,46 @@ def _image_operators(mesh, tab, cutoff, rad, h0, gl_x, gl_w, Q_inf, Gam_max):
             outside = np.ones(len(near), bool)
         itree = cKDTree(cimg)
         # an image acts only across the wall itself, not across an exit on the same line:
-        # the segment from the cell to the image must cross the line on a wall edge
-        piece = shapely.MultiLineString([mesh.points[mesh.edges[e_]] for e_ in sel])
-        shapely.prepare(piece)
+        # the segment from the cell to the image must cross the line on a wall edge, i.e.
+        # (all on one line) within 1e-6 m of one of the edges' intervals along it
         nvec = np.array([nx_, ny_])
-        for a, i in enumerate(near):
-            for b in itree.query_ball_point(c[i], cutoff + rad[i] + 2 * rad.max()):
-                if not outside[b]:
-                    continue
-                di = offset - c[i] @ nvec
-                dj = cimg[b] @ nvec - offset
-                cross = c[i] + (cimg[b] - c[i]) * (di / max(di + dj, 1e-300))
-                if shapely.distance(piece, shapely.Point(cross)) > 1e-6:
-                    continue
-                pair_integral(P[i], img[b], tab.FG, tab.Q, tab.Gam, tab.dr, tab.r_max,
-                              tab.FG_inf, Q_inf, Gam_max, tab.Fg_inf, True, False, h0, gl_x,
-                              gl_w, w, k)
-                rows.append(i)
-                cols.append(near[b])
-                vx.append(w[0] / mesh.areas[i])
-                vy.append(w[1] / mesh.areas[i])
+        tvec = np.array([-ny_, nx_])
+        ends = mesh.points[mesh.edges[sel]] @ tvec  # (k, 2) edge ends along the line
+        lo, hi = _merged_intervals(ends.min(axis=1), ends.max(axis=1), 2e-6)
+        # every (cell near[a], image b) within reach, then those whose segment crosses the
+        # wall (vectorised: one tree query and one shapely distance over all of them)
+        found = itree.query_ball_point(c[near], cutoff + rad[near] + 2 * rad.max())
+        counts = np.fromiter((len(f) for f in found), np.int64, len(found))
+        if counts.sum() == 0:
+            continue
+        A = np.repeat(np.arange(len(near)), counts)
+        Bi = np.concatenate([np.asarray(f, np.int64) for f in found if len(f)])
+        ok = outside[Bi]
+        A, Bi = A[ok], Bi[ok]
+        ci = c[near[A]]
+        di = offset - ci @ nvec
+        dj = cimg[Bi] @ nvec - offset
+        cross = ci + (cimg[Bi] - ci) * (di / np.maximum(di + dj, 1e-300))[:, None]
+        # (a cell beyond the line from its image's side has di + dj <= 0: no crossing, and
+        # the point is then far off the line)
+        along = cross @ tvec
+        k_ = np.searchsorted(lo, along + 1e-6, side="right") - 1
+        ok = ((np.abs(cross @ nvec - offset) <= 1e-6) & (k_ >= 0)
+              & (along <= hi[np.maximum(k_, 0)] + 1e-6))
+        A, Bi = A[ok], Bi[ok]
+        if len(A) == 0:
+            continue
+        W = np.empty((len(A), 2))
+        _image_pairs(P, img, near, A, Bi, tab.FG, tab.Q, tab.Gam, tab.dr, tab.r_max,
+                     tab.FG_inf, Q_inf, Gam_max, tab.Fg_inf, h0, gl_x, gl_w, W)
+        i = near[A]
+        rows.append(i)
+        cols.append(near[Bi])
+        vx.append(W[:, 0] / mesh.areas[i])
+        vy.append(W[:, 1] / mesh.areas[i])
+    if rows:
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        vx, vy = np.concatenate(vx), np.concatenate(vy)
     Ix = sp.csr_matrix((vx, (rows, cols)), shape=(m, m))
     Iy = sp.csr_matrix((vy, (rows, cols)), shape=(m, m))
     return Ix, Iy

@@ -38,14 +38,22 @@ from . import _kernels as K
 from .models.base import MacroModel
 from .reconstruction import build_reconstruction
 
-__all__ = ["FVOptions", "FVState", "FVSolver", "FVController", "PARALLEL_MIN_CELLS"]
+__all__ = ["FVOptions", "FVState", "FVSolver", "FVController", "PARALLEL_MIN_CELLS",
+           "PARALLEL_MIN_CELLS_TBB", "threading_layer", "parallel_min_cells"]
 
-#: meshes with fewer cells run the kernels on one thread: measured on 2 cores (idle), Example
-#: 2 eos steps 1.6x faster on 2 threads with 15,835 cells and not at all with 3,995 (the
-#: threads' start and join cost what they save). And when other processes keep the cores
-#: busy (several runs at once, ensembles), OpenMP threads that wait for a descheduled
-#: partner make every step tens of times slower: one thread is the safe choice there
+#: meshes with fewer cells run the kernels on one thread, under numba's OpenMP (or
+#: workqueue) threading layer: measured on 2 cores (idle), Example 2 eos steps 1.6x faster on
+#: 2 threads with 15,835 cells and not at all with 3,995 (the threads' start and join cost
+#: what they save). And when other processes keep the cores busy (several runs at once,
+#: ensembles), OpenMP threads that wait for a descheduled partner make every step tens of
+#: times slower (two Example 2 eos runs at once on 2 threads each: 38.6 s each instead of
+#: 5.2 s alone): one thread is the safe choice there
 PARALLEL_MIN_CELLS = 12_000
+#: the same under numba's TBB threading layer (the default where the ``tbb`` package is
+#: installed, a dependency on x86-64): TBB's work-stealing threads tolerate busy cores (two
+#: such runs at once: 5.5 s each) and start faster: 2 threads save 6-15 % on Example 1-3's
+#: 5,400-5,800 cells and lose 6-14 % on pillar_hall's 2,585 (whole runs, 2 cores)
+PARALLEL_MIN_CELLS_TBB = 4_000
 #: the active set (FVOptions.active_set) reaches this many face neighbours beyond the occupied
 #: cells: the first ring receives what the occupied cells send within a step (under the CFL
 #: condition a stage moves mass by at most one cell), the second keeps the front's
@@ -78,7 +86,8 @@ class FVOptions:
     #: rdue on Example 2 and the corridor bottleneck (benchmarks/continuum_speed.py --sweep)
     route_interval: float = 1.0
     #: threads of the compiled kernels; None: numba's thread count (NUMBA_NUM_THREADS or
-    #: numba.set_num_threads) on meshes of at least PARALLEL_MIN_CELLS cells, else 1
+    #: numba.set_num_threads) on meshes of at least PARALLEL_MIN_CELLS_TBB cells under the
+    #: TBB threading layer (PARALLEL_MIN_CELLS under OpenMP), else 1
     threads: int | None = None
     #: semi-implicit step (:mod:`pedmesh.macro.implicit`): the pressure implicit, the time
     #: step set by the material speed; None: on for every model with a pressure law in its
@@ -572,12 +581,31 @@ class FVSolver:
         return float(K.cell_total(self.areas, Q))
 
 
+def threading_layer() -> str:
+    """The threading layer numba runs the kernels' parallel loops on: ``'tbb'``, ``'omp'``
+    or ``'workqueue'`` (numba picks the first it can load, TBB first; started here by a
+    trivial parallel loop if it has not been yet)."""
+    import numba
+
+    try:
+        return numba.threading_layer()
+    except ValueError:  # no parallel loop has run yet in this process
+        K.launch_threads(np.zeros(1))
+        return numba.threading_layer()
+
+
+def parallel_min_cells() -> int:
+    """The smallest mesh [cells] whose kernels run on more than one thread by default:
+    :data:`PARALLEL_MIN_CELLS_TBB` under TBB, else :data:`PARALLEL_MIN_CELLS`."""
+    return PARALLEL_MIN_CELLS_TBB if threading_layer() == "tbb" else PARALLEL_MIN_CELLS
+
+
 def _threads(wanted: int | None, cells: int) -> int:
     import numba
 
     most = numba.get_num_threads()
     if wanted is None:
-        return most if cells >= PARALLEL_MIN_CELLS else 1
+        return most if most > 1 and cells >= parallel_min_cells() else 1
     return min(wanted, numba.config.NUMBA_NUM_THREADS)
 
 

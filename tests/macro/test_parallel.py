@@ -49,17 +49,27 @@ def test_one_and_two_threads_give_the_same_bits(hall, name):
     assert run.evacuated + run.remaining == pytest.approx(n0, rel=1e-12)
 
 
-def test_thread_policy(hall):
-    """One thread below PARALLEL_MIN_CELLS cells (no gain there, and a large loss on a busy
-    machine), numba's thread count above; an explicit count is taken as given; the caller's
-    numba thread setting is restored after each step."""
+def test_thread_policy(hall, monkeypatch):
+    """One thread below the threshold of the threading layer (PARALLEL_MIN_CELLS under
+    OpenMP, whose spinning threads cost a large loss on a busy machine, the smaller
+    PARALLEL_MIN_CELLS_TBB under TBB), numba's thread count above; an explicit count is
+    taken as given; the caller's numba thread setting is restored after each step."""
     from pedmesh.errors import ParameterError
-    from pedmesh.macro.solver import PARALLEL_MIN_CELLS, FVOptions, _threads
+    from pedmesh.macro import solver as S
+    from pedmesh.macro.solver import FVOptions, _threads
 
     room, mesh = hall
-    assert mesh.n_triangles < PARALLEL_MIN_CELLS
+    assert S.threading_layer() in ("tbb", "omp", "workqueue")
+    assert S.PARALLEL_MIN_CELLS_TBB < S.PARALLEL_MIN_CELLS
+    most = numba.get_num_threads()
+    for layer, limit in (("omp", S.PARALLEL_MIN_CELLS), ("tbb", S.PARALLEL_MIN_CELLS_TBB)):
+        monkeypatch.setattr(S, "threading_layer", lambda layer=layer: layer)
+        assert S.parallel_min_cells() == limit
+        assert _threads(None, limit - 1) == 1
+        assert _threads(None, limit) == most
+    monkeypatch.undo()
+    assert mesh.n_triangles < S.parallel_min_cells()
     assert _threads(None, mesh.n_triangles) == 1
-    assert _threads(None, PARALLEL_MIN_CELLS) == numba.get_num_threads()
     assert _threads(1, 10**6) == 1
     _, factory = get_model("eos")
     run = factory(room, mesh, {"threads": 2})
