@@ -292,38 +292,73 @@ def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, active, out):
         out[i, 1] = rho[i] * fy
 
 
+@nb.njit(cache=True, inline="always")
+def _fric_row(ptr, idx, kxx, kxy, kyy, rho, mom, active, i):
+    """Row i of :func:`_fric_apply`: rho_i (K m)_i - (K rho)_i m_i (0 for an empty cell at
+    rest and for a cell outside ``active``)."""
+    if (rho[i] == 0.0 and mom[i, 0] == 0.0 and mom[i, 1] == 0.0) or not active[i]:
+        return 0.0, 0.0
+    rxx = 0.0
+    rxy = 0.0
+    ryy = 0.0
+    axx = 0.0
+    axy = 0.0
+    ayx = 0.0
+    ayy = 0.0
+    for k in range(ptr[i], ptr[i + 1]):
+        j = idx[k]
+        r = rho[j]
+        mx = mom[j, 0]
+        my = mom[j, 1]
+        rxx += kxx[k] * r
+        rxy += kxy[k] * r
+        ryy += kyy[k] * r
+        axx += kxx[k] * mx
+        axy += kxy[k] * my
+        ayx += kxy[k] * mx
+        ayy += kyy[k] * my
+    mx = mom[i, 0]
+    my = mom[i, 1]
+    return (rho[i] * (axx + axy) - (rxx * mx + rxy * my),
+            rho[i] * (ayx + ayy) - (rxy * mx + ryy * my))
+
+
 @nb.njit(cache=True, parallel=True)
 def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, active, out):
     """out_i = rho_i (K m)_i - (K rho)_i m_i with the 2x2 blocks K_ij = [[kxx, kxy], [kxy,
     kyy]] on one CSR pattern (see :meth:`PairOperators.friction`); 0 in empty cells at rest
     and in those outside ``active`` without summing their rows."""
     for i in nb.prange(rho.shape[0]):
-        if (rho[i] == 0.0 and mom[i, 0] == 0.0 and mom[i, 1] == 0.0) or not active[i]:
-            out[i, 0] = out[i, 1] = 0.0
-            continue
-        rxx = 0.0
-        rxy = 0.0
-        ryy = 0.0
-        axx = 0.0
-        axy = 0.0
-        ayx = 0.0
-        ayy = 0.0
-        for k in range(ptr[i], ptr[i + 1]):
-            j = idx[k]
-            r = rho[j]
-            mx = mom[j, 0]
-            my = mom[j, 1]
-            rxx += kxx[k] * r
-            rxy += kxy[k] * r
-            ryy += kyy[k] * r
-            axx += kxx[k] * mx
-            axy += kxy[k] * my
-            ayx += kxy[k] * mx
-            ayy += kyy[k] * my
-        mx = mom[i, 0]
-        my = mom[i, 1]
-        out[i, 0] = rho[i] * (axx + axy) - (rxx * mx + rxy * my)
-        out[i, 1] = rho[i] * (ayx + ayy) - (rxy * mx + ryy * my)
+        fx, fy = _fric_row(ptr, idx, kxx, kxy, kyy, rho, mom, active, i)
+        out[i, 0] = fx
+        out[i, 1] = fy
+
+
+@nb.njit(cache=True, parallel=True)
+def _fric_rk3(ptr, idx, kxx, kxy, kyy, rho, M, active, h, n, M1, M2):
+    """``n`` Shu-Osher SSP-RK3 steps of length ``h`` [s] of dM/dt = friction(rho, M) (density
+    fixed), in place on ``M`` (m, 2); ``M1``, ``M2`` (m, 2) work. Each stage is one parallel
+    pass over the rows (every row reads the previous stage only), with the operations in
+    the order of the numpy expressions ``M1 = M + h f(M)``, ``M2 = 3/4 M + 1/4 (M1 + h
+    f(M1))``, ``M = M/3 + 2/3 (M2 + h f(M2))``, so the result is the same to the bit."""
+    m = rho.shape[0]
+    c23 = 2.0 / 3.0
+    for _ in range(n):
+        for i in nb.prange(m):
+            fx, fy = _fric_row(ptr, idx, kxx, kxy, kyy, rho, M, active, i)
+            M1[i, 0] = M[i, 0] + h * fx
+            M1[i, 1] = M[i, 1] + h * fy
+        for i in nb.prange(m):
+            fx, fy = _fric_row(ptr, idx, kxx, kxy, kyy, rho, M1, active, i)
+            M2[i, 0] = 0.75 * M[i, 0] + 0.25 * (M1[i, 0] + h * fx)
+            M2[i, 1] = 0.75 * M[i, 1] + 0.25 * (M1[i, 1] + h * fy)
+        for i in nb.prange(m):
+            fx, fy = _fric_row(ptr, idx, kxx, kxy, kyy, rho, M2, active, i)
+            M1[i, 0] = M[i, 0] / 3.0 + c23 * (M2[i, 0] + h * fx)
+            M1[i, 1] = M[i, 1] / 3.0 + c23 * (M2[i, 1] + h * fy)
+        for i in nb.prange(m):
+            M[i, 0] = M1[i, 0]
+            M[i, 1] = M1[i, 1]
 
 
 def _all(m: int) -> np.ndarray:
@@ -396,6 +431,18 @@ class PairOperators:
         _fric_apply(K.indptr, K.indices, K.data, self.Kxy.data, self.Kyy.data, rho, mom,
                     _all(len(rho)) if active is None else active, out)
         return out
+
+    def friction_steps(self, rho: np.ndarray, mom: np.ndarray, h: float, n: int,
+                       active: np.ndarray | None = None) -> np.ndarray:
+        """``n`` SSP-RK3 steps of length ``h`` [s] of d(rho u)/dt = :meth:`friction` with the
+        density ``rho`` fixed, from the momentum ``mom`` (m, 2); the new momentum (m, 2)."""
+        rho = np.ascontiguousarray(rho, dtype=np.float64)
+        M = np.array(mom, dtype=np.float64, order="C")
+        K = self.Kxx
+        _fric_rk3(K.indptr, K.indices, K.data, self.Kxy.data, self.Kyy.data, rho, M,
+                  _all(len(rho)) if active is None else active, float(h), int(n),
+                  np.empty_like(M), np.empty_like(M))
+        return M
 
 
 def _tri_pts(mesh: TriMesh) -> np.ndarray:
