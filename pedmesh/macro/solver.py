@@ -231,7 +231,8 @@ class FVSolver:
         #: of the scheme and model: see FVOptions)
         cfl = self.options.cfl
         if cfl is None:
-            cfl = IMEX_CFL if self.implicit is not None else model.default_cfl
+            cfl = (getattr(model, "imex_cfl", IMEX_CFL) if self.implicit is not None
+                   else model.default_cfl)
         self.cfl = float(cfl)
         stages = self.options.stages
         if stages is None:  # 3 only for a pressure in explicit fluxes (the reference scheme)

@@ -126,7 +126,7 @@ def _check_positive(obj: Any, skip: tuple[str, ...] = ()) -> None:
 #: parameters whose values are words, not numbers
 TEXT_PARAMS = {"exit", "calibration", "speed_law"}
 #: switches: 0/1 or false/true on the command line (read as 0.0/1.0)
-BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction",
+BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction", "imex",
                "density_self"}
 _BOOL_WORDS = {"0": 0.0, "1": 1.0, "false": 0.0, "true": 1.0}
 

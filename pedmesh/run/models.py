@@ -291,7 +291,8 @@ _register_macro("pw", {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"} | SPEED_K
 _register_macro("rdue", {"U_f", "beta"} | SPEED_KEYS, aliases=("hughes",))
 _BASE = {"U_f", "beta", "tau", "rho_cut", "u_max"} | SPEED_KEYS
 _SFM = {"A", "B", "k", "kappa", "m", "r"}
-_register_macro("mac1", _BASE | _SFM | {"walls", "friction", "cutoff", "split_friction"})
+_register_macro("mac1", _BASE | _SFM | {"walls", "friction", "cutoff", "split_friction",
+                                         "imex"})
 for _name in ("mac2-local", "mac2-local-friction", "mac2-nonlocal", "mac2-nonlocal-friction"):
     _register_macro(_name, _BASE | _SFM | {"lr_strength", "lr_length", "gamma1"})
 _register_macro("eos", _BASE | _SFM | {"calibration"}, aliases=("calibrated",))

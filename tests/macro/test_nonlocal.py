@@ -241,7 +241,9 @@ def test_split_friction_step_conserves_momentum_and_dissipates(ops_sequence):
 
 def test_split_friction_run_matches_friction_in_the_stages():
     """A crowd walking to an exit: mac1 with its friction split off at cfl 0.7 against the
-    friction inside the stages at cfl 0.2 (the reference of the Mac1 docstring)."""
+    friction inside the stages at cfl 0.2 (the reference of the Mac1 docstring), in the
+    explicit scheme (imex=0); and the semi-implicit step (the default) with the friction
+    split off against the same reference."""
     from pedmesh.macro.solver import FVOptions
 
     mesh = BOX.mesh(max_area=0.25)
@@ -256,22 +258,26 @@ def test_split_friction_run_matches_friction_in_the_stages():
         return e
 
     out = {}
-    for split, cfl in ((1, 0.7), (0, 0.2)):
-        model = macro_model("mac1", split_friction=split)
+    for key, split, cfl, imex in (("split", 1, 0.7, 0), ("stages", 0, 0.2, 0),
+                                  ("split-imex", 1, None, 1)):
+        model = macro_model("mac1", split_friction=split, imex=imex)
         s, st = run_to(mesh, model, crowd, 4.0, options=FVOptions(cfl=cfl), direction=east)
-        out[split] = (st.Q, float(st.outflow.sum()), st.steps)
-    Qa, outa, na = out[1]
-    Qb, outb, nb = out[0]
-    assert na < nb / 2.5
-    assert outa > 1.0 and abs(outa - outb) < 0.01 * outb
-    rel = np.sum(mesh.areas * np.abs(Qa[:, 0] - Qb[:, 0])) / np.sum(mesh.areas * Qb[:, 0])
-    print(f"\nsplit (cfl 0.7, {na} steps) vs in-stage friction (cfl 0.2, {nb} steps): "
-          f"outflow {outa:.4f} / {outb:.4f} ped, density L1 difference {rel:.2e}")
-    assert rel < 0.01
+        out[key] = (st.Q, float(st.outflow.sum()), st.steps)
+    Qb, outb, nb = out["stages"]
+    for key in ("split", "split-imex"):
+        Qa, outa, na = out[key]
+        rel = np.sum(mesh.areas * np.abs(Qa[:, 0] - Qb[:, 0])) / np.sum(mesh.areas * Qb[:, 0])
+        print(f"\n{key} ({na} steps) vs in-stage friction (cfl 0.2, {nb} steps): "
+              f"outflow {outa:.4f} / {outb:.4f} ped, density L1 difference {rel:.2e}")
+        assert na < nb / 2.5
+        assert outa > 1.0 and abs(outa - outb) < 0.01 * outb
+        assert rel < 0.01
 
 
 def test_split_friction_is_a_run_parameter():
-    """`--param split_friction=0` reaches mac1 and brings back cfl 0.4 (friction in the stages)."""
+    """`--param split_friction=0` reaches mac1 and brings back cfl 0.4 (friction in the
+    stages) in the explicit scheme (imex=0); `--param imex=0` reaches it too, and the
+    default is the semi-implicit step (cfl 0.8)."""
     from pedmesh import StartArea
     from pedmesh.run.models import MODELS
 
@@ -279,10 +285,14 @@ def test_split_friction_is_a_run_parameter():
                 start_areas=[StartArea("crowd", [(2, 2), (6, 2), (6, 6), (2, 6)], density=2.0)])
     mesh = room.mesh(max_area=0.5)
     for value, split, cfl in ((0.0, False, 0.4), (1.0, True, 0.7)):
-        run = MODELS["mac1"](room, mesh, {"split_friction": value})
+        run = MODELS["mac1"](room, mesh, {"split_friction": value, "imex": 0})
         assert run.solver.model.has_split_source is split
         assert run.solver.cfl == cfl
         assert run.parameters()["split_friction"] is split
+        assert run.parameters()["imex"] is False and run.solver.implicit is None
+    run = MODELS["mac1"](room, mesh, {})
+    assert run.parameters()["imex"] is True and run.solver.implicit is not None
+    assert run.solver.cfl == 0.8  # (Mac1.imex_cfl)
 
 
 def _image_reference(mesh, cutoff=1.0, h0=0.02):

@@ -8,9 +8,16 @@
         + rho int Psi(|x-y|)/|x-y|^2 <u(y)-u(x), (x-y)^perp> (x-y)^perp rho(y) dy   (friction)
 
 with the SFM kernels Phi, Psi (:mod:`pedmesh.macro.kernels`), sparse operators built once per
-mesh (:mod:`pedmesh.macro.nonlocal_ops`), walls acting through mirror images, the
-Rusanov wave speed ``|u.n| + sqrt(gamma1 rho)`` (the repulsion is an un-upwinded pressure)
-and the stiff friction applied by Strang splitting in sub-steps (see :class:`Mac1`).
+mesh (:mod:`pedmesh.macro.nonlocal_ops`), walls acting through mirror images, and the stiff
+friction applied by Strang splitting in sub-steps (see :class:`Mac1`). The repulsion is split
+(``imex=1``, the default) into its local part, the pressure ``p = gamma1 rho^2 / 2`` of its
+expansion ``-gamma1 rho grad rho``, which the semi-implicit step treats implicitly
+(:mod:`pedmesh.macro.implicit`), and the rest, the nonlocal repulsion minus the force with
+which that step applies p, as an explicit source: the time step is then set by the crowd's
+speed, not by the sound ``sqrt(gamma1 rho)`` (7 m/s at 5 ped/m^2), and as dt -> 0 the source
+is the whole nonlocal repulsion again. ``imex=0`` keeps the whole repulsion in the sources
+with the Rusanov wave speed ``|u.n| + sqrt(gamma1 rho)`` (the repulsion acting as an
+un-upwinded pressure): the explicit scheme, for verification.
 
 ``mac2`` family (hydrodynamic scaling, paper eq. mac2) with S1 in {local f22, nonlocal f21}
 and S2 in {nonlocal friction f31, none f32}:
@@ -26,6 +33,7 @@ and S2 in {nonlocal friction f31, none f32}:
 
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
@@ -59,6 +67,11 @@ class Mac1(BarotropicModel):
     a dissipative symmetric operator, never increases the kinetic energy; the density is
     untouched. The CFL number is then the core's 0.7.
 
+    The repulsion is split (``imex=1``, the default; module docstring): on Example 2 the
+    semi-implicit run (cfl 0.8, :attr:`imex_cfl`) gives T50/T90 88.57/127.03 s in 2,602
+    steps against the explicit scheme's (``imex=0``) 88.34/126.61 s in 5,324 (+0.3 %,
+    +0.3 %).
+
     ``split_friction=0`` keeps the friction inside the stages with ``dt <= 2 / rate`` and
     cfl 0.4: larger steps resolve it poorly and the run changes. Evidence on Example 2
     (mesh h = 1.1 m), T50/T90/T100: in the stages, cfl 0.2 gives 88.03/125.53/164.08 s and
@@ -67,6 +80,14 @@ class Mac1(BarotropicModel):
     87.97/125.44/163.89 s in 2661 steps (4663 at cfl 0.4 in the stages).
     """
 
+    #: CFL number of the semi-implicit step (imex=1): its explicit source (the nonlocal
+    #: repulsion minus its local part) speeds the crowd up within a step, so at the usual 0.9
+    #: many steps outrun their bound and are taken again. Whole runs, 2 interleaved repeats:
+    #: Example 1 at cfl 0.7 / 0.8 / 0.9: 17.3-18.2 / 16.4-16.9 / 20.2-20.5 s (0.9: 1,791
+    #: steps and 1,422 retries; 0.8: 1,811 and 454); Example 3 at 0.8 / 0.9: 20.5-22.4 /
+    #: 27.2-27.9 s; Example 2 at 0.7 / 0.8 / 0.9: 21.4-21.6 / 19.5-21.2 / 18.3-18.8 s.
+    #: T50/T90 move by less than 0.1 % between them
+    imex_cfl = 0.8
     #: max ``dt_sub * rate`` of a friction sub-step (the rate bounds the largest eigenvalue
     #: of the friction operator to within a factor 2; SSP-RK3 is stable to 2.5)
     friction_substep = 1.0
@@ -74,7 +95,7 @@ class Mac1(BarotropicModel):
     def __init__(self, *, U_f=1.034, beta=0.05, tau=0.5, rho_cut=1e-3, u_max=None,
                  speed_law="exponential", rho_jam=5.4, gamma_w=1.913, rho_shift=0.0,
                  walls: float = 1.0, friction: float = 1.0, cutoff: float = 1.0,
-                 split_friction: float = 1.0, **sfm) -> None:
+                 split_friction: float = 1.0, imex: float = 1.0, **sfm) -> None:
         unknown = set(sfm) - set(_SFM_KEYS)
         if unknown:
             raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
@@ -82,7 +103,12 @@ class Mac1(BarotropicModel):
         self.sfm = {k: float(v) for k, v in sfm.items()}
         self.gamma1 = gamma1(self.phi)
         self.gamma2 = gamma2(self.psi)
-        super().__init__("mac1", PressureLaw.speed_only(self.gamma1), U_f=U_f, beta=beta,
+        #: the repulsion split into its local part, the pressure gamma1 rho^2 / 2 (in the
+        #: flux, implicit in the semi-implicit step), and the rest (explicit source)
+        self.imex = bool(imex)
+        law = (PressureLaw.quadratic(self.gamma1) if self.imex
+               else PressureLaw.speed_only(self.gamma1))
+        super().__init__("mac1", law, U_f=U_f, beta=beta,
                          tau=tau, rho_cut=rho_cut, u_max=u_max, speed_law=speed_law,
                          rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift)
         self.walls = bool(walls)
@@ -106,13 +132,28 @@ class Mac1(BarotropicModel):
                                               self.psi if self.use_friction else None,
                                               cutoff=self.cutoff, walls=self.walls)
         self.ops = cache[key]
+        if self.imex:
+            from .._kernels import cell_edges
+
+            t2e = cell_edges(mesh)
+            e2t = mesh.edge_triangles
+            m = mesh.n_triangles
+            own = e2t[t2e, 0] == np.arange(m)[:, None]
+            self._nbr = np.where(own, e2t[t2e, 1], e2t[t2e, 0]).astype(np.int64)
+            sg = np.where(own, 1.0, -1.0)
+            ln = mesh.edge_lengths[t2e] * sg
+            self._lnx = np.ascontiguousarray(ln * mesh.edge_normals[t2e, 0])
+            self._lny = np.ascontiguousarray(ln * mesh.edge_normals[t2e, 1])
+            self._is_exit = np.ascontiguousarray(mesh.edge_kind[t2e] == 3)  # BoundaryKind.EXIT
+            self._inv_area = 1.0 / mesh.areas
         if self.use_friction:
             K = self.ops
             self._k_trace = (K.Kxx + K.Kyy).tocsr()
 
     @property
     def default_cfl(self) -> float:
-        """0.7 with the friction split off, 0.4 with it inside the stages (class docstring)."""
+        """The explicit scheme's (imex=0): 0.7 with the friction split off, 0.4 with it inside
+        the stages (class docstring). (The semi-implicit step uses its own, IMEX_CFL.)"""
         return 0.7 if self.has_split_source or not self.use_friction else 0.4
 
     def _friction_rate(self, rho: np.ndarray) -> float:
@@ -124,6 +165,9 @@ class Mac1(BarotropicModel):
         rho = np.maximum(Q[:, 0], 0.0)
         out = np.zeros_like(Q)
         out[:, 1:3] = self.ops.repulsion(rho, walls=self.walls, active=self.active)
+        if self.imex:  # minus the local part, which the pressure in the flux applies
+            _minus_local_pressure(rho, self._nbr, self._lnx, self._lny, self._is_exit,
+                                  self._inv_area, self.gamma1, out)
         if self.use_friction and not self.has_split_source:
             out[:, 1:3] += self.ops.friction(rho, Q[:, 1:3], active=self.active)
         return out
@@ -151,7 +195,32 @@ class Mac1(BarotropicModel):
     def parameters(self) -> dict:
         return {**super().parameters(), **self.sfm, "gamma1": self.gamma1, "gamma2": self.gamma2,
                 "walls": self.walls, "friction": self.use_friction, "cutoff": self.cutoff,
-                "split_friction": self.split_friction}
+                "split_friction": self.split_friction, "imex": self.imex}
+
+
+@nb.njit(cache=True)
+def _minus_local_pressure(rho, nbr, lnx, lny, is_exit, inv_area, g1, out):
+    """Add to ``out[:, 1:3]`` minus the force [ped m/s^2 per m^2] with which the implicit
+    pressure correction (:mod:`pedmesh.macro.implicit`) applies the pressure g1 rho^2 / 2 at
+    the densities ``rho``: the two-point ``-rho_i grad h`` (h = g1 rho) over the interior
+    faces, ``+ p_i l n`` at exits (``lnx``, ``lny``: length times outward normal per cell
+    and local edge; ``nbr`` the neighbour across it, -1 on the boundary)."""
+    for i in range(rho.shape[0]):
+        fx = 0.0
+        fy = 0.0
+        ri = rho[i]
+        for k in range(3):
+            j = nbr[i, k]
+            if j >= 0:
+                w = 0.5 * ri * g1 * (rho[j] - ri)
+                fx -= lnx[i, k] * w
+                fy -= lny[i, k] * w
+            elif is_exit[i, k]:
+                p = 0.5 * g1 * ri * ri
+                fx += lnx[i, k] * p
+                fy += lny[i, k] * p
+        out[i, 1] -= fx * inv_area[i]
+        out[i, 2] -= fy * inv_area[i]
 
 
 class Mac2(BarotropicModel):
