@@ -316,15 +316,17 @@ class FVSolver:
         if self.model.direction_dependent_flux:  # (else no flux reads it)
             self.e_edge = df.at(self.recon.edge_pt.reshape(-1, 2),
                                 np.repeat(self.e2t[:, 0], 2)).reshape(-1, 2, 2)
-            self.e_edge = _slide_along_walls(self.e_edge, self._edge_wall_normals())
+            near, normals = self._edge_wall_normals()
+            self.e_edge[near] = _slide_along_walls(self.e_edge[near], normals)
         self.e_int = df.at(self.int_pts.reshape(-1, 2), np.repeat(np.arange(m), 3)).reshape(m, 3, 2)
         self.e_cell = df.triangle_directions
         self._sample_directions()
         self._route_done = True
 
-    def _edge_wall_normals(self) -> np.ndarray:
-        """(n_edges, 4, 2): the outward normals of the walls and obstacle sides of the (one
-        or two) cells on each edge, up to two per cell, zero rows where there are fewer."""
+    def _edge_wall_normals(self) -> tuple[np.ndarray, np.ndarray]:
+        """The edges of the cells against a wall or obstacle (k,), and (k, 4, 2) the outward
+        normals of the walls and obstacle sides of the (one or two) cells on each, up to two
+        per cell, zero rows where there are fewer."""
         if getattr(self, "_ewn", None) is None:
             mesh = self.mesh
             m = mesh.n_triangles
@@ -336,8 +338,10 @@ class FVSolver:
                     tw[cell, used[cell]] = mesh.edge_normals[w]
                     used[cell] += 1
             L, R = self.e2t[:, 0], self.e2t[:, 1]
-            self._ewn = np.concatenate([tw[L], np.where((R >= 0)[:, None, None],
-                                                        tw[np.maximum(R, 0)], 0.0)], axis=1)
+            ewn = np.concatenate([tw[L], np.where((R >= 0)[:, None, None],
+                                                  tw[np.maximum(R, 0)], 0.0)], axis=1)
+            near = np.flatnonzero(np.abs(ewn).sum(axis=(1, 2)) > 0)
+            self._ewn = (near, np.ascontiguousarray(ewn[near]))
         return self._ewn
 
     # ------------------------------------------------------------------ residual
