@@ -133,6 +133,7 @@ class Mac1(BarotropicModel):
                                               cutoff=self.cutoff, walls=self.walls)
         self.ops = cache[key]
         if self.imex:
+            from ...mesh.trimesh import BoundaryKind
             from .._kernels import cell_edges
 
             t2e = cell_edges(mesh)
@@ -144,7 +145,7 @@ class Mac1(BarotropicModel):
             ln = mesh.edge_lengths[t2e] * sg
             self._lnx = np.ascontiguousarray(ln * mesh.edge_normals[t2e, 0])
             self._lny = np.ascontiguousarray(ln * mesh.edge_normals[t2e, 1])
-            self._is_exit = np.ascontiguousarray(mesh.edge_kind[t2e] == 3)  # BoundaryKind.EXIT
+            self._is_exit = np.ascontiguousarray(mesh.edge_kind[t2e] == BoundaryKind.EXIT)
             self._inv_area = 1.0 / mesh.areas
         if self.use_friction:
             K = self.ops
@@ -153,7 +154,7 @@ class Mac1(BarotropicModel):
     @property
     def default_cfl(self) -> float:
         """The explicit scheme's (imex=0): 0.7 with the friction split off, 0.4 with it inside
-        the stages (class docstring). (The semi-implicit step uses its own, IMEX_CFL.)"""
+        the stages (class docstring). (The semi-implicit step uses :attr:`imex_cfl`.)"""
         return 0.7 if self.has_split_source or not self.use_friction else 0.4
 
     def _friction_rate(self, rho: np.ndarray) -> float:
