@@ -49,16 +49,12 @@ WAITING_RUNS = ("uo-070-180-180", "uo-100-180-180", "uo-180-180-180")
 def exit_flow(room, geometry: str, out: Path, *, preset: str, seed: int | None = None,
               static_routes: bool = False) -> float:
     """The exit flow J [1/s] of one SFM run of ``room``, measured as the experiment's."""
-    from pedmesh.run import run_model
-
-    mesh = room.mesh(**{k: v for k, v in B.MESH_OPTIONS.items() if v is not None})
-    options: dict = {"trajectory_rate": 10.0}
-    if seed is not None:
-        options["seed"] = seed
+    options: dict = {"seed": seed} if seed is not None else {}
     if static_routes:
         options["static_routes"] = True
-    run_model(room, mesh, "sfm", t_end=600.0, out_dir=out, quiet=True, geometry=geometry,
-              mesh_options=dict(B.MESH_OPTIONS), model_options=options, preset=preset)
+    s = B.run_sfm(room, out, preset=preset, geometry=geometry, model_options=options)
+    if s["error"] is not None:
+        raise SystemExit(f"{room.name}: {s['error']}")
     return float(V.measure(V.load_run(out), V.corridor_setup(room.walkable),
                            fd_frames="steady")["flow"]["exit"])
 

@@ -112,10 +112,11 @@ FREE_AREA = ((36.0, 0.0), (58.0, 0.0), (58.0, 4.0), (36.0, 4.0))
 # --------------------------------------------------------------------------- running
 def run_sfm(room: Room, out_dir: Path, *, overrides: Mapping[str, Any] | None = None,
             preset: str | None = None, t_end: float = 600.0, trajectory_rate: float = 10.0,
-            geometry: str | None = None) -> dict[str, Any]:
+            geometry: str | None = None,
+            model_options: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Simulate ``room`` with the SFM into ``out_dir``; the run's summary plus
     ``wall_s`` (whole wall time [s] including meshing) and ``error`` (None, or why the
-    run failed)."""
+    run failed). ``model_options``: more options of the run (``seed``, ``static_routes``)."""
     from pedmesh.errors import PedmeshError
     from pedmesh.run import run_model
 
@@ -125,7 +126,8 @@ def run_sfm(room: Room, out_dir: Path, *, overrides: Mapping[str, Any] | None = 
         summary = run_model(room, mesh, "sfm", overrides=dict(overrides or {}), t_end=t_end,
                             out_dir=out_dir, quiet=True, geometry=geometry,
                             mesh_options=dict(MESH_OPTIONS),
-                            model_options={"trajectory_rate": trajectory_rate},
+                            model_options={"trajectory_rate": trajectory_rate,
+                                           **(model_options or {})},
                             preset=preset)
         error = None
     except PedmeshError as exc:  # a blow-up or a bad parameter: record it, go on

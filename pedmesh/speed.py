@@ -57,31 +57,19 @@ def flux_and_slope(law, U_f, rho):
     """The flow f(rho) = rho U_f g(rho - shift) [ped/(m s)] at rho = max(rho, 0) and
     |f'(rho)| [m/s]."""
     r = max(rho, 0.0)
-    s = law[4]
-    if s > 0.0:  # the shifted law (below the shift: free flow)
-        x = r - s
-        if law[0] == EXPONENTIAL:
-            if x <= 0.0:
-                return r * U_f, U_f
-            e = math.exp(-law[1] * x)
-            return r * U_f * e, abs(U_f * (1.0 - law[1] * r) * e)
+    x = r - law[4]  # (below the shift: free flow)
+    if law[0] == EXPONENTIAL:
         if x <= 0.0:
             return r * U_f, U_f
-        if x >= law[2]:
-            return 0.0, 0.0
-        e = math.exp(-law[3] * (1.0 / x - 1.0 / law[2]))
-        # f' = U_f (g + r g'(x)) with g' = -(gamma_w / x^2) e
-        return U_f * r * (1.0 - e), abs(U_f * (1.0 - e - law[3] * r / (x * x) * e))
-    if law[0] == EXPONENTIAL:
-        e = math.exp(-law[1] * r)
+        e = math.exp(-law[1] * x)
         return r * U_f * e, abs(U_f * (1.0 - law[1] * r) * e)
-    if r <= 0.0:
-        return 0.0, U_f
-    if r >= law[2]:
+    if x <= 0.0:
+        return r * U_f, U_f
+    if x >= law[2]:
         return 0.0, 0.0
-    e = math.exp(-law[3] * (1.0 / r - 1.0 / law[2]))
-    # f = U_f r (1 - e), f' = U_f (1 - e - (gamma_w / r) e)
-    return U_f * r * (1.0 - e), abs(U_f * (1.0 - e - law[3] / r * e))
+    e = math.exp(-law[3] * (1.0 / x - 1.0 / law[2]))
+    # f = U_f r (1 - e), f' = U_f (g + r g'(x)) with g' = -(gamma_w / x^2) e
+    return U_f * r * (1.0 - e), abs(U_f * (1.0 - e - law[3] * r / (x * x) * e))
 
 
 @dataclass(frozen=True)

@@ -639,9 +639,9 @@ def _slide_along_walls(e: np.ndarray, wall_normals: np.ndarray) -> np.ndarray:
     against a wall the direction is now turned along it at all their edges."""
     out = e.copy()
     for k in range(wall_normals.shape[1]):
-        n = wall_normals[:, k][:, None, :]  # (n_edges, 1, 2)
-        into = np.maximum(np.einsum("egd,ed->eg", out, wall_normals[:, k]), 0.0)
-        out -= into[..., None] * n
+        n = wall_normals[:, k]  # (n_edges, 2)
+        into = np.maximum(np.einsum("egd,ed->eg", out, n), 0.0)
+        out -= into[..., None] * n[:, None, :]
     norm = np.hypot(out[..., 0], out[..., 1])
     changed = norm < 1.0 - 1e-12
     big = changed & (norm > 1e-9)
