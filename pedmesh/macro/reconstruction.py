@@ -164,6 +164,14 @@ def _stencils(nbr, tri, vptr, vidx, out):
                         n += 1
 
 
+def _pinv_t(U, s, Vt):
+    """The transposed pseudo-inverses (k, L, n) of matrices (k, L, n) of full rank given by
+    their thin SVDs ``U s Vt`` (the condition was checked: no singular value is cut):
+    ``(V s^-1 U^T)^T = U s^-1 V^T``, as numpy.linalg.pinv computes it from the same SVD."""
+    return np.matmul(Vt.transpose(0, 2, 1), (1.0 / s)[..., None] * U.transpose(0, 2, 1)
+                     ).transpose(0, 2, 1)
+
+
 def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     """Stencils, least-squares operators and point basis values of a mesh (once per mesh)."""
     cache = mesh._cache
@@ -199,19 +207,18 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
         AL = A[rows, :L]
         quad = np.zeros(len(rows), bool)
         if L >= 7:
-            sv = np.linalg.svd(AL, compute_uv=False)
+            U, sv, Vt = np.linalg.svd(AL, full_matrices=False)
             quad = (sv[:, -1] > 0) & (sv[:, 0] < COND_LIMIT * sv[:, -1])
             if quad.any():
-                R[rows[quad], :L, :] = np.linalg.pinv(AL[quad]).transpose(0, 2, 1)
+                R[rows[quad], :L, :] = _pinv_t(U[quad], sv[quad], Vt[quad])
                 opt_degree[rows[quad]] = 2
         lin = ~quad
         if lin.any():
-            A1 = AL[lin][:, :, :2]
-            sv = np.linalg.svd(A1, compute_uv=False)
+            U, sv, Vt = np.linalg.svd(AL[lin][:, :, :2], full_matrices=False)
             ok = (sv[:, -1] > 0) & (sv[:, 0] < COND_LIMIT * sv[:, -1])
             r = rows[lin][ok]
             if len(r):
-                R[r, :L, :2] = np.linalg.pinv(A1[ok]).transpose(0, 2, 1)
+                R[r, :L, :2] = _pinv_t(U[ok], sv[ok], Vt[ok])
                 opt_degree[r] = 1
     # linear sector polynomials on pairs of neighbours
     pairs = np.full((m, MAX_PAIRS, 2), -1, np.int64)
@@ -250,24 +257,30 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     pairs[ci[keep], rank[keep]] = np.stack([ca[keep], cb[keep]], axis=1)
     pair_inv[ci[keep], rank[keep]] = inv[keep]
     np.add.at(n_pairs, ci[keep], 1)
-    for i in np.flatnonzero(~full):  # boundary cells: also pairs with second-ring cells
-        n1 = [int(j) for j in nbr[i] if j >= 0]
-        cand = [(a, b) for ka, a in enumerate(n1) for b in n1[ka + 1:]]
-        for a in n1:
-            for b in nbr[a]:
-                if b >= 0 and b != i and b not in n1:
-                    cand.append((a, int(b)))
-        rows = []
-        for a, b in cand:
-            Mi = np.array([(cen[a] - cen[i]) / h[i], (cen[b] - cen[i]) / h[i]])
-            d = np.linalg.det(Mi)
-            if abs(d) > 1e-3 * np.abs(Mi).max() ** 2:
-                rows.append((a in n1 and b in n1, abs(d), a, b, np.linalg.inv(Mi)))
-        rows.sort(key=lambda r: (not r[0], -r[1]))
-        for k, (_, _, a, b, g) in enumerate(rows[:MAX_PAIRS]):
-            pairs[i, k] = (a, b)
-            pair_inv[i, k] = g
-        n_pairs[i] = min(len(rows), MAX_PAIRS)
+    # boundary cells: also pairs with second-ring cells; the pairs of two face neighbours
+    # first, then the best conditioned
+    cand = []  # (cell, a, b, both face neighbours)
+    nbl = nbr.tolist()
+    for i in np.flatnonzero(~full).tolist():
+        n1 = [j for j in nbl[i] if j >= 0]
+        cand += [(i, a, b, True) for ka, a in enumerate(n1) for b in n1[ka + 1:]]
+        cand += [(i, a, b, False) for a in n1 for b in nbl[a]
+                 if b >= 0 and b != i and b not in n1]
+    if cand:
+        c = np.array(cand, np.int64)
+        ci, ca, cb, both = c[:, 0], c[:, 1], c[:, 2], c[:, 3].astype(bool)
+        M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]],
+                     axis=1)
+        d = np.abs(np.linalg.det(M))
+        good = d > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
+        ci, ca, cb, both, d, M = ci[good], ca[good], cb[good], both[good], d[good], M[good]
+        order = np.lexsort((-d, ~both, ci))  # (stable: ties keep the order listed)
+        ci, ca, cb, inv = ci[order], ca[order], cb[order], np.linalg.inv(M[order])
+        rank = np.arange(len(ci)) - np.searchsorted(ci, ci)
+        keep = rank < MAX_PAIRS
+        pairs[ci[keep], rank[keep]] = np.stack([ca[keep], cb[keep]], axis=1)
+        pair_inv[ci[keep], rank[keep]] = inv[keep]
+        np.add.at(n_pairs, ci[keep], 1)
     # Gauss points on the edges and basis values at the 9 points of every cell
     e = mesh.edges
     p0 = mesh.points[e[:, 0]]

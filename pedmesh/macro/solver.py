@@ -433,6 +433,12 @@ class FVSolver:
                 model.edge_flux(c["qL"], c["qR"], c["nx1"], c["ny1"], c["ex"], c["ey"], idx,
                                 self.lengths, F, self.live)
                 continue
+            if (name != "interior" and model.boundary_flux is not None
+                    and self.boundary_state is None
+                    and model.boundary_flux(name, qL, geo[0], geo[1], c["qL" + sfx].shape[1],
+                                            idx, self.lengths, F, alpha, self.live,
+                                            self.exit_kind)):
+                continue
             if name == "interior":
                 Fp, a = model.flux(qL, c["qR" + sfx].reshape(-1, nv), *geo)
             elif self.boundary_state is not None:  # (never with one point per edge)

@@ -234,6 +234,42 @@ def test_one_pass_fluxes_and_sources_equal_the_generic_path(name):
     np.testing.assert_allclose(o1, o2, rtol=1e-13)
 
 
+@pytest.mark.parametrize("name,implicit,exit", [
+    ("eos", False, None), ("eos", True, None), ("pw", False, "godunov"),
+    ("pw", True, "godunov"), ("mac2-local", False, "godunov"), ("pw", False, "vacuum")])
+def test_one_pass_boundary_fluxes_equal_the_generic_path(name, implicit, exit):
+    """The barotropic models do their wall and Godunov exit edges in one pass each
+    (``boundary_flux``: point fluxes, integration and wave speeds); the first- and
+    high-order fluxes and the wave speeds must be the generic path's to round-off, also for
+    the explicit part of the semi-implicit step (whose exit wave speed is not the
+    Rusanov one) and where the exit condition is not Godunov (generic path)."""
+    mesh = _small_mesh()
+    model = macro_model(name)
+    s = FVSolver(mesh, model, FVOptions(implicit_pressure=implicit, exit=exit))
+    assert (s.xmodel is not model) == implicit and s.xmodel.boundary_flux is not None
+    Q = _rough_state(model, mesh)
+    s.update_route(Q)
+    s.residual(Q, 0.0, 1e-4)  # allocates the work arrays
+    Q = Q.copy()
+    Q[s.e2t[s.exits, 0], 1] = np.abs(Q[s.e2t[s.exits, 0], 1])  # crowds leaving too
+    got = []
+    for hook in (s.xmodel.boundary_flux, None):
+        s.xmodel.boundary_flux = hook
+        F, a = np.full_like(s._FL, np.nan), np.full_like(s._alpha, np.nan)
+        s._low_order(Q, 0.0, F, a)
+        R = s.recon
+        R.apply(Q, s._Es.reshape(-1, 3), s._Vi, order=3, eps_hat=0.1, qref=s.qref,
+                slot=s._slot, positivity=None, cact=s.cact)
+        FH = np.full_like(s._FL, np.nan)
+        s._fluxes(0.0, FH)
+        got.append((F, a, FH))
+    for x, y in zip(*got):
+        assert np.all(np.isfinite(x))
+        np.testing.assert_allclose(x, y, rtol=0, atol=1e-14 * np.abs(y).max())
+    b = np.concatenate([s.walls, s.exits])
+    assert np.abs(got[0][0][s.exits, 0]).max() > 0 and np.abs(got[0][2][b]).max() > 0
+
+
 def test_one_pass_hooks_step_aside_for_a_subclass_with_its_own_flux_or_source():
     from pedmesh.macro.models.barotropic import PayneWhitham
 
@@ -245,9 +281,15 @@ def test_one_pass_hooks_step_aside_for_a_subclass_with_its_own_flux_or_source():
         def flux(self, qL, qR, nx, ny, ex, ey):
             return super().flux(qL, qR, nx, ny, ex, ey)
 
+    class OwnExit(PayneWhitham):
+        def exit_flux(self, q, nx, ny, ex, ey, kind):
+            return super().exit_flux(q, nx, ny, ex, ey, kind)
+
     assert Own().source_mean is None and Own().edge_flux is not None
     assert OwnFlux().edge_flux is None and OwnFlux().cell_flux is None
-    assert PayneWhitham().source_mean is not None
+    assert OwnFlux().boundary_flux is None and OwnExit().boundary_flux is None
+    assert OwnExit().edge_flux is not None
+    assert PayneWhitham().source_mean is not None and PayneWhitham().boundary_flux is not None
 
     from pedmesh.macro.models.rdue import RDUE
 

@@ -308,6 +308,55 @@ def _h(kind, prm, rho, h_rho, h_val):
     return h_val[lo] * (1 - w) + h_val[hi] * w
 
 
+@nb.njit(**FAST, inline="always")
+def _godunov_point(q, n0, n1, kind, prm, rho_cut, umax, h_rho, h_val):
+    """The exact Godunov flux (3 components) between the state (3,) ``q`` and vacuum
+    across the unit normal (n0, n1) (see :func:`vacuum_godunov`)."""
+    r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
+    if r <= 0.0:
+        return 0.0, 0.0, 0.0
+    un = ux * n0 + uy * n1
+    tx = ux - un * n0
+    ty = uy - un * n1
+    p, c = _p_c(kind, prm, r)
+    if c == 0.0 or un - c >= 0.0:  # pressureless, or supersonic outflow
+        if un <= 0.0:
+            return 0.0, 0.0, 0.0
+        rs, us, ps = r, un, p
+    else:
+        if kind == ISOTHERMAL:
+            if un >= prm[0]:
+                rs, us = r, un
+            else:
+                rs = r * math.exp(un / prm[0] - 1.0)
+                us = prm[0]
+        elif kind == QUADRATIC:
+            cs = (un + 2.0 * c) / 3.0
+            if cs <= 0.0:
+                return 0.0, 0.0, 0.0
+            rs = cs * cs / prm[0]
+            us = cs
+        else:
+            target = un + _h(kind, prm, r, h_rho, h_val)
+            lo = 0.0
+            hi = r
+            if target <= 0.0:
+                return 0.0, 0.0, 0.0
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                _, cm = _p_c(kind, prm, mid)
+                g = (_h(kind, prm, mid, h_rho, h_val) if mid > 0 else 0.0) + cm - target
+                if g > 0.0:
+                    hi = mid
+                else:
+                    lo = mid
+            rs = 0.5 * (lo + hi)
+            _, us = _p_c(kind, prm, rs)
+        ps, _ = _p_c(kind, prm, rs)
+    m = rs * us
+    return m, m * (us * n0 + tx) + ps * n0, m * (us * n1 + ty) + ps * n1
+
+
 @nb.njit(**PAR)
 def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
     """Exact Godunov flux of the Riemann problem between each state and vacuum (empty space
@@ -319,55 +368,95 @@ def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
         for b_ in range(c_, ((n_k) + BLOCK - 1) // BLOCK, NCHUNK):
             for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
-                r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
-                F[k, 0] = 0.0
-                F[k, 1] = 0.0
-                F[k, 2] = 0.0
-                if r <= 0.0:
-                    continue
-                n0, n1 = nx[k], ny[k]
-                un = ux * n0 + uy * n1
-                tx = ux - un * n0
-                ty = uy - un * n1
-                p, c = _p_c(kind, prm, r)
-                if c == 0.0 or un - c >= 0.0:  # pressureless, or supersonic outflow
-                    if un <= 0.0:
-                        continue
-                    rs, us, ps = r, un, p
+                F[k, 0], F[k, 1], F[k, 2] = _godunov_point(q[k], nx[k], ny[k], kind, prm,
+                                                           rho_cut, umax, h_rho, h_val)
+
+
+@nb.njit(**FAST)
+def wall_edges(q, nx, ny, g, kind, prm, rho_cut, umax, edges, lengths, F, alpha, want_alpha,
+               live):
+    """Wall fluxes in one pass: the Rusanov flux against the mirror state at each of the
+    ``g`` points of each of ``edges`` (states (k g, 3), unit normals (k g,)), integrated
+    over the edge into ``F[e]`` (the Gauss rule for g = 2, ``l_e f`` for g = 1), and with
+    ``want_alpha`` the edge's largest Rusanov speed of the state into ``alpha[e]``; both 0
+    on edges that are not ``live``. The same arithmetic as :func:`mirror`,
+    :func:`rusanov` and :func:`~pedmesh.macro._kernels.integrate_edges` (to round-off:
+    the compiler may contract other products into fused multiply-adds)."""
+    s = np.empty(3)
+    f = np.empty((2, 3))
+    for a_ in range(edges.shape[0]):
+        e = edges[a_]
+        if not live[e]:
+            F[e, 0] = F[e, 1] = F[e, 2] = 0.0
+            if want_alpha:
+                alpha[e] = 0.0
+            continue
+        am = 0.0
+        for j in range(g):
+            k = a_ * g + j
+            mn = q[k, 1] * nx[k] + q[k, 2] * ny[k]
+            s[0] = q[k, 0]
+            s[1] = q[k, 1] - 2.0 * mn * nx[k]
+            s[2] = q[k, 2] - 2.0 * mn * ny[k]
+            f[j, 0], f[j, 1], f[j, 2], _ = _rusanov_point(q[k], s, nx[k], ny[k], kind, prm,
+                                                          rho_cut, umax)
+            if want_alpha:
+                _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm, rho_cut,
+                                             umax)
+                am = aj if j == 0 else max(am, aj)
+        _integrate(f, g, lengths[e], F, e)
+        if want_alpha:
+            alpha[e] = am
+
+
+@nb.njit(**FAST)
+def godunov_exit_edges(q, nx, ny, g, kind, prm, xkind, xprm, rho_cut, umax, h_rho, h_val,
+                       edges, lengths, F, alpha, want_alpha, exit_speed, live):
+    """Exit fluxes in one pass: the exact Godunov flux into vacuum of the exit law
+    (``xkind``, ``xprm``) at each of the ``g`` points of each of ``edges``, integrated over
+    the edge into ``F[e]``, and with ``want_alpha`` the edge's largest wave speed into
+    ``alpha[e]``: with ``exit_speed`` that of :func:`_exit_speed` (the exit law is not the
+    flux law), else the Rusanov speed of the state under the law (``kind``, ``prm``); both 0
+    on edges that are not ``live``. The same arithmetic as :func:`vacuum_godunov`,
+    :func:`_exit_speed`, :func:`rusanov` and
+    :func:`~pedmesh.macro._kernels.integrate_edges` (to round-off)."""
+    f = np.empty((2, 3))
+    for a_ in range(edges.shape[0]):
+        e = edges[a_]
+        if not live[e]:
+            F[e, 0] = F[e, 1] = F[e, 2] = 0.0
+            if want_alpha:
+                alpha[e] = 0.0
+            continue
+        am = 0.0
+        for j in range(g):
+            k = a_ * g + j
+            f[j, 0], f[j, 1], f[j, 2] = _godunov_point(q[k], nx[k], ny[k], xkind, xprm, rho_cut,
+                                                       umax, h_rho, h_val)
+            if want_alpha:
+                if exit_speed:
+                    r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
+                    un = ux * nx[k] + uy * ny[k]
+                    aj = abs(un)
+                    if r > 0.0:
+                        aj = max(aj, 2.0 * f[j, 0] / r - un)
                 else:
-                    if kind == ISOTHERMAL:
-                        if un >= prm[0]:
-                            rs, us = r, un
-                        else:
-                            rs = r * math.exp(un / prm[0] - 1.0)
-                            us = prm[0]
-                    elif kind == QUADRATIC:
-                        cs = (un + 2.0 * c) / 3.0
-                        if cs <= 0.0:
-                            continue
-                        rs = cs * cs / prm[0]
-                        us = cs
-                    else:
-                        target = un + _h(kind, prm, r, h_rho, h_val)
-                        lo = 0.0
-                        hi = r
-                        if target <= 0.0:
-                            continue
-                        for _ in range(60):
-                            mid = 0.5 * (lo + hi)
-                            _, cm = _p_c(kind, prm, mid)
-                            g = (_h(kind, prm, mid, h_rho, h_val) if mid > 0 else 0.0) + cm - target
-                            if g > 0.0:
-                                hi = mid
-                            else:
-                                lo = mid
-                        rs = 0.5 * (lo + hi)
-                        _, us = _p_c(kind, prm, rs)
-                    ps, _ = _p_c(kind, prm, rs)
-                m = rs * us
-                F[k, 0] = m
-                F[k, 1] = m * (us * n0 + tx) + ps * n0
-                F[k, 2] = m * (us * n1 + ty) + ps * n1
+                    _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm, rho_cut,
+                                                 umax)
+                am = aj if j == 0 else max(am, aj)
+        _integrate(f, g, lengths[e], F, e)
+        if want_alpha:
+            alpha[e] = am
+
+
+@nb.njit(**FAST, inline="always")
+def _integrate(f, g, length, F, e):
+    """F[e] = l/2 (f_0 + f_1) (g = 2) or l f_0 (g = 1), as integrate_edges does."""
+    for v in range(3):
+        if g == 2:
+            F[e, v] = 0.5 * length * (f[0, v] + f[1, v])
+        else:
+            F[e, v] = length * f[0, v]
 
 
 @nb.njit(**FAST, inline="always")
@@ -428,6 +517,9 @@ def velocities(q, rho_cut, umax, out):
         r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
         out[k, 0] = ux
         out[k, 1] = uy
+
+
+_NO_ALPHA = np.zeros(1)
 
 
 class BarotropicModel(MacroModel):
@@ -561,6 +653,27 @@ class BarotropicModel(MacroModel):
                            self.u_max, self._h_rho, self._h_val, F)
             return F
         raise ParameterError(f"unknown exit condition '{kind}'")
+
+    def boundary_flux(self, name, q, nx, ny, g, edges, lengths, F, alpha, live, exit_kind):
+        """The wall (``name`` 'wall') or Godunov exit ('exit') fluxes of ``edges`` in one
+        pass, integrated over the edges into ``F`` (n_edges, 3), and, unless ``alpha`` is
+        None, each edge's largest wave speed into ``alpha``: what :meth:`wall_flux`,
+        :meth:`exit_flux`, :meth:`exit_wave_speed` and the solver's integration give (to
+        round-off). States ``q`` (k g, 3) at ``g`` points per edge, unit normals (k g,). Returns
+        False (nothing done) for the other exit conditions."""
+        want = alpha is not None
+        al = alpha if want else _NO_ALPHA
+        if name == "wall":
+            wall_edges(q, nx, ny, g, self.law.kind, self.law.params, self.rho_vac, self.u_max,
+                       edges, lengths, F, al, want, live)
+            return True
+        if name == "exit" and exit_kind == "godunov":
+            x = self.exit_law
+            godunov_exit_edges(q, nx, ny, g, self.law.kind, self.law.params, x.kind, x.params,
+                               self.rho_vac, self.u_max, self._h_rho, self._h_val, edges,
+                               lengths, F, al, want, x is not self.law, live)
+            return True
+        return False
 
     def source(self, q, ex, ey):
         S = np.empty_like(q)

@@ -10,8 +10,9 @@ from ...errors import ParameterError
 
 __all__ = ["MacroModel", "MACRO_MODELS", "register_macro_model", "macro_model"]
 
-#: the optional one-pass hooks and the method whose work each does
-ONE_PASS_HOOKS = {"cell_flux": "flux", "edge_flux": "flux", "source_mean": "source"}
+#: the optional one-pass hooks and the methods whose work each does
+ONE_PASS_HOOKS = {"cell_flux": ("flux",), "edge_flux": ("flux",), "source_mean": ("source",),
+                  "boundary_flux": ("flux", "wall_flux", "exit_flux", "exit_wave_speed")}
 
 
 class MacroModel:
@@ -37,16 +38,18 @@ class MacroModel:
     default_cfl: float = 0.7
 
     def __init_subclass__(cls, **kwargs) -> None:
-        """A subclass that overrides :meth:`flux` or :meth:`source` below the class that
-        supplies a one-pass hook for it (``ONE_PASS_HOOKS``) loses the hook: the hook
-        computes its owner's method, so the solver takes the generic path instead."""
+        """A subclass that overrides a method (:meth:`flux`, :meth:`source`, ...) below the
+        class that supplies a one-pass hook doing its work (``ONE_PASS_HOOKS``) loses the
+        hook: the hook computes its owner's methods, so the solver takes the generic path
+        instead."""
         super().__init_subclass__(**kwargs)
         mro = cls.__mro__
-        for hook, method in ONE_PASS_HOOKS.items():
+        for hook, methods in ONE_PASS_HOOKS.items():
             owner = next(k for k in mro if hook in vars(k))
             if vars(owner)[hook] is None:
                 continue
-            if mro.index(next(k for k in mro if method in vars(k))) < mro.index(owner):
+            if any(mro.index(next(k for k in mro if m in vars(k))) < mro.index(owner)
+                   for m in methods):
                 setattr(cls, hook, None)
 
     def flux(self, qL, qR, nx, ny, ex, ey):
@@ -66,6 +69,14 @@ class MacroModel:
     #: edge, directions (2 k,) per point), integrated over the edges into ``F`` in one pass
     #: (0 on edges not ``live``); None: the solver calls :meth:`flux` and integrates
     edge_flux = None
+    #: optional ``boundary_flux(name, q, nx, ny, g, edges, lengths, F, alpha, live,
+    #: exit_kind) -> bool``: the wall ('wall') or exit ('exit') fluxes of ``edges`` (states
+    #: (k g, nv) at ``g`` points per edge, unit normals (k g,)) integrated over the edges
+    #: into ``F`` in one pass, with each edge's largest wave speed into ``alpha`` unless it is
+    #: None (0 on edges not ``live``), exactly as :meth:`wall_flux`, :meth:`exit_flux` and
+    #: :meth:`exit_wave_speed` give them; False where it does not cover the case. None: the
+    #: solver calls those methods and integrates
+    boundary_flux = None
 
     def wall_flux(self, q, nx, ny, ex, ey):
         """Flux density (k, nv) through a wall with outward normal n (zero mass flux)."""
