@@ -196,37 +196,78 @@ def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, e
                     out[i, 1] = V[i, 1]
                     out[i, 2] = V[i, 2]
                     continue
-                ri = out[i, 0]
-                fx = 0.0
-                fy = 0.0
+                fx, fy = _pressure_force(i, out[i, 0], hc, pc, enthalpy, L, R, nx, ny, ln,
+                                         cf, cs, ecell, enx, eny, eln, livef)
                 mx = V[i, 1]
                 my = V[i, 2]
                 ia = 1.0 / areas[i]
                 for k in range(3):
                     f = cf[i, k]
-                    if f < 0:
-                        e = ecell[i, k]
-                        if e >= 0:  # an exit: the cell's pressure on the face
-                            fx += eln[e] * enx[e] * pc[i]
-                            fy += eln[e] * eny[e] * pc[i]
+                    if f < 0 or not livef[f]:
                         continue
-                    if not livef[f]:
-                        continue
+                    # momentum of the face mass, with the velocity of the cell it leaves
                     sg = cs[i, k]  # +1: the face's normal points out of i
                     j = R[f] if sg > 0 else L[f]
-                    if enthalpy:
-                        w = 0.5 * ri * (hc[j] - hc[i])
-                    else:
-                        w = 0.5 * (pc[j] - pc[i])
-                    fx -= ln[f] * sg * nx[f] * w
-                    fy -= ln[f] * sg * ny[f] * w
-                    # momentum of the face mass, with the velocity of the cell it leaves
                     x = sg * X[f]  # > 0: out of i
                     src = i if x > 0.0 else j
                     mx -= x * ia * ux[src]
                     my -= x * ia * uy[src]
                 out[i, 1] = mx + dt * ia * fx
                 out[i, 2] = my + dt * ia * fy
+
+
+@nb.njit(**FAST, inline="always")
+def _pressure_force(i, ri, hc, pc, enthalpy, L, R, nx, ny, ln, cf, cs, ecell, enx, eny, eln,
+                    livef):
+    """The pressure force on cell i (density ``ri``) integrated over its faces [ped m/s^2]:
+    ``-rho_i grad h`` as a two-point difference of the cells' enthalpies ``hc`` across the
+    ``livef`` interior faces (the isothermal law, ``enthalpy`` False: ``-grad p`` of the
+    pressures ``pc``), and at exits the cell's own pressure on the face."""
+    fx = 0.0
+    fy = 0.0
+    for k in range(3):
+        f = cf[i, k]
+        if f < 0:
+            e = ecell[i, k]
+            if e >= 0:  # an exit: the cell's pressure on the face
+                fx += eln[e] * enx[e] * pc[i]
+                fy += eln[e] * eny[e] * pc[i]
+            continue
+        if not livef[f]:
+            continue
+        sg = cs[i, k]  # +1: the face's normal points out of i
+        j = R[f] if sg > 0 else L[f]
+        if enthalpy:
+            w = 0.5 * ri * (hc[j] - hc[i])
+        else:
+            w = 0.5 * (pc[j] - pc[i])
+        fx -= ln[f] * sg * nx[f] * w
+        fy -= ln[f] * sg * ny[f] * w
+    return fx, fy
+
+
+@nb.njit(**PAR)
+def _subtract_force(rho, kind, prm, tr, th, enthalpy, L, R, nx, ny, ln, areas, cf, cs, ecell,
+                    enx, eny, eln, livef, cact, W, out):
+    """out[i, 1:3] -= the pressure force per area (:func:`_pressure_force`) at the
+    densities ``rho``, for the active cells ``cact``. ``W`` (2, m) work array."""
+    m = rho.shape[0]
+    hc, pc = W[0], W[1]
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                r = rho[i]
+                hc[i] = _h(r, tr, th, kind, prm) if enthalpy else 0.0
+                pc[i], _ = _p_c(kind, prm, r)
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
+                fx, fy = _pressure_force(i, rho[i], hc, pc, enthalpy, L, R, nx, ny, ln, cf,
+                                         cs, ecell, enx, eny, eln, livef)
+                out[i, 1] -= fx / areas[i]
+                out[i, 2] -= fy / areas[i]
 
 
 class ImplicitPressure:
@@ -327,6 +368,23 @@ class ImplicitPressure:
                self.tr, self.th, self.enthalpy, dt, self.rho_vac, self.u_max, cact, livef,
                self._X, self._W, out)
         return out
+
+    def subtract_pressure_force(self, rho: np.ndarray, out: np.ndarray,
+                                cact: np.ndarray | None = None) -> None:
+        """``out[:, 1:3] -=`` the pressure force per area [ped m/s^2 per m^2] with which
+        :meth:`correct` applies the pressure at the densities ``rho`` (m,) (every interior
+        face; on the active cells ``cact``, else all): a model that moves part of its force
+        into the pressure (mac1's local repulsion) takes it out of its explicit source
+        with it."""
+        m = len(rho)
+        if cact is None:
+            cact = np.ones(m, np.bool_)
+        if getattr(self, "_all_faces", None) is None:
+            self._all_faces = np.ones(len(self.L), np.bool_)
+        _subtract_force(np.ascontiguousarray(rho, dtype=np.float64), self.kind, self.prm,
+                        self.tr, self.th, self.enthalpy, self.L, self.R, self.nx, self.ny,
+                        self.ln, self.areas, self.cf, self.cs, self.ecell, self.enx, self.eny,
+                        self.eln, self._all_faces, cact, self._W, out)
 
     def live_faces(self, live: np.ndarray) -> np.ndarray:
         """The interior faces (in this object's numbering) among the ``live`` edges."""

@@ -33,7 +33,6 @@ and S2 in {nonlocal friction f31, none f32}:
 
 from __future__ import annotations
 
-import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
@@ -132,21 +131,10 @@ class Mac1(BarotropicModel):
                                               self.psi if self.use_friction else None,
                                               cutoff=self.cutoff, walls=self.walls)
         self.ops = cache[key]
-        if self.imex:
-            from ...mesh.trimesh import BoundaryKind
-            from .._kernels import cell_edges
+        if self.imex:  # the force of the local part, as the implicit correction applies it
+            from ..implicit import ImplicitPressure
 
-            t2e = cell_edges(mesh)
-            e2t = mesh.edge_triangles
-            m = mesh.n_triangles
-            own = e2t[t2e, 0] == np.arange(m)[:, None]
-            self._nbr = np.where(own, e2t[t2e, 1], e2t[t2e, 0]).astype(np.int64)
-            sg = np.where(own, 1.0, -1.0)
-            ln = mesh.edge_lengths[t2e] * sg
-            self._lnx = np.ascontiguousarray(ln * mesh.edge_normals[t2e, 0])
-            self._lny = np.ascontiguousarray(ln * mesh.edge_normals[t2e, 1])
-            self._is_exit = np.ascontiguousarray(mesh.edge_kind[t2e] == BoundaryKind.EXIT)
-            self._inv_area = 1.0 / mesh.areas
+            self._pressure = ImplicitPressure(mesh, self)
         if self.use_friction:
             K = self.ops
             self._k_trace = (K.Kxx + K.Kyy).tocsr()
@@ -167,8 +155,7 @@ class Mac1(BarotropicModel):
         out = np.zeros_like(Q)
         out[:, 1:3] = self.ops.repulsion(rho, walls=self.walls, active=self.active)
         if self.imex:  # minus the local part, which the pressure in the flux applies
-            _minus_local_pressure(rho, self._nbr, self._lnx, self._lny, self._is_exit,
-                                  self._inv_area, self.gamma1, out)
+            self._pressure.subtract_pressure_force(rho, out, self.active)
         if self.use_friction and not self.has_split_source:
             out[:, 1:3] += self.ops.friction(rho, Q[:, 1:3], active=self.active)
         return out
@@ -197,31 +184,6 @@ class Mac1(BarotropicModel):
         return {**super().parameters(), **self.sfm, "gamma1": self.gamma1, "gamma2": self.gamma2,
                 "walls": self.walls, "friction": self.use_friction, "cutoff": self.cutoff,
                 "split_friction": self.split_friction, "imex": self.imex}
-
-
-@nb.njit(cache=True)
-def _minus_local_pressure(rho, nbr, lnx, lny, is_exit, inv_area, g1, out):
-    """Add to ``out[:, 1:3]`` minus the force [ped m/s^2 per m^2] with which the implicit
-    pressure correction (:mod:`pedmesh.macro.implicit`) applies the pressure g1 rho^2 / 2 at
-    the densities ``rho``: the two-point ``-rho_i grad h`` (h = g1 rho) over the interior
-    faces, ``+ p_i l n`` at exits (``lnx``, ``lny``: length times outward normal per cell
-    and local edge; ``nbr`` the neighbour across it, -1 on the boundary)."""
-    for i in range(rho.shape[0]):
-        fx = 0.0
-        fy = 0.0
-        ri = rho[i]
-        for k in range(3):
-            j = nbr[i, k]
-            if j >= 0:
-                w = 0.5 * ri * g1 * (rho[j] - ri)
-                fx -= lnx[i, k] * w
-                fy -= lny[i, k] * w
-            elif is_exit[i, k]:
-                p = 0.5 * g1 * ri * ri
-                fx += lnx[i, k] * p
-                fy += lny[i, k] * p
-        out[i, 1] -= fx * inv_area[i]
-        out[i, 2] -= fy * inv_area[i]
 
 
 class Mac2(BarotropicModel):
