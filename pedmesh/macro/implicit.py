@@ -187,8 +187,7 @@ def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, e
                 if r < 0.0:  # round-off below an emptied cell
                     r = 0.0
                 out[i, 0] = r
-                hc[i] = _h(r, tr, th, kind, prm) if enthalpy else 0.0
-                pc[i], _ = _p_c(kind, prm, r)
+                hc[i], pc[i] = _h_p(r, tr, th, kind, prm, enthalpy)
     for c_ in nb.prange(NCHUNK):
         for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
@@ -214,6 +213,13 @@ def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, e
                     my -= x * ia * uy[src]
                 out[i, 1] = mx + dt * ia * fx
                 out[i, 2] = my + dt * ia * fy
+
+
+@nb.njit(**FAST, inline="always")
+def _h_p(r, tr, th, kind, prm, enthalpy):
+    """The enthalpy (0 without ``enthalpy``) and the pressure at density ``r``."""
+    p, _ = _p_c(kind, prm, r)
+    return (_h(r, tr, th, kind, prm) if enthalpy else 0.0), p
 
 
 @nb.njit(**FAST, inline="always")
@@ -256,9 +262,7 @@ def _subtract_force(rho, kind, prm, tr, th, enthalpy, L, R, nx, ny, ln, areas, c
     for c_ in nb.prange(NCHUNK):
         for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
-                r = rho[i]
-                hc[i] = _h(r, tr, th, kind, prm) if enthalpy else 0.0
-                pc[i], _ = _p_c(kind, prm, r)
+                hc[i], pc[i] = _h_p(rho[i], tr, th, kind, prm, enthalpy)
     for c_ in nb.prange(NCHUNK):
         for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
             for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):

@@ -257,14 +257,19 @@ def rusanov_cells(Q, e2t, edges, nx, ny, kind, prm, rho_cut, umax, lengths, F, a
                 alpha[e] = a
 
 
+@nb.njit(**FAST, inline="always")
+def _mirror_point(q, nx, ny):
+    """The mirror state of ``q`` (3,) at a wall with unit normal (nx, ny): the same density,
+    the normal velocity reversed."""
+    mn = q[1] * nx + q[2] * ny
+    return q[0], q[1] - 2.0 * mn * nx, q[2] - 2.0 * mn * ny
+
+
 @nb.njit(**PAR)
 def mirror(q, nx, ny, out):
     """Mirror states: same density, normal velocity reversed."""
     for k in nb.prange(q.shape[0]):
-        mn = q[k, 1] * nx[k] + q[k, 2] * ny[k]
-        out[k, 0] = q[k, 0]
-        out[k, 1] = q[k, 1] - 2.0 * mn * nx[k]
-        out[k, 2] = q[k, 2] - 2.0 * mn * ny[k]
+        out[k, 0], out[k, 1], out[k, 2] = _mirror_point(q[k], nx[k], ny[k])
 
 
 @nb.njit(**PAR)
@@ -373,15 +378,20 @@ def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
 
 
 @nb.njit(**FAST)
-def wall_edges(q, nx, ny, g, kind, prm, rho_cut, umax, edges, lengths, F, alpha, want_alpha,
-               live):
-    """Wall fluxes in one pass: the Rusanov flux against the mirror state at each of the
-    ``g`` points of each of ``edges`` (states (k g, 3), unit normals (k g,)), integrated
-    over the edge into ``F[e]`` (the Gauss rule for g = 2, ``l_e f`` for g = 1), and with
-    ``want_alpha`` the edge's largest Rusanov speed of the state into ``alpha[e]``; both 0
-    on edges that are not ``live``. The same arithmetic as :func:`mirror`,
-    :func:`rusanov` and :func:`~pedmesh.macro._kernels.integrate_edges` (to round-off:
-    the compiler may contract other products into fused multiply-adds)."""
+def boundary_edges(q, nx, ny, g, wall, kind, prm, xkind, xprm, rho_cut, umax, h_rho, h_val,
+                   edges, lengths, F, alpha, want_alpha, exit_speed, live):
+    """Wall (``wall``) or exit fluxes of ``edges`` in one pass, at each of the ``g`` points
+    of each edge (states (k g, 3), unit normals (k g,)), integrated over the edge into
+    ``F[e]`` (the Gauss rule for g = 2, ``l_e f`` for g = 1); with ``want_alpha`` the edge's
+    largest wave speed into ``alpha[e]``; both 0 on edges that are not ``live``.
+
+    Walls: the Rusanov flux of the law (``kind``, ``prm``) against the mirror state. Exits:
+    the exact Godunov flux into vacuum of the exit law (``xkind``, ``xprm``). The wave speed
+    is the Rusanov speed of the state under the law, at exits with ``exit_speed`` that of
+    :func:`_exit_speed` (the exit law is not the flux law). The same arithmetic as
+    :func:`mirror`, :func:`rusanov`, :func:`vacuum_godunov`, :func:`_exit_speed` and
+    :func:`~pedmesh.macro._kernels.integrate_edges` (to round-off: the compiler may contract
+    other products into fused multiply-adds)."""
     s = np.empty(3)
     f = np.empty((2, 3))
     for a_ in range(edges.shape[0]):
@@ -394,52 +404,16 @@ def wall_edges(q, nx, ny, g, kind, prm, rho_cut, umax, edges, lengths, F, alpha,
         am = 0.0
         for j in range(g):
             k = a_ * g + j
-            mn = q[k, 1] * nx[k] + q[k, 2] * ny[k]
-            s[0] = q[k, 0]
-            s[1] = q[k, 1] - 2.0 * mn * nx[k]
-            s[2] = q[k, 2] - 2.0 * mn * ny[k]
-            f[j, 0], f[j, 1], f[j, 2], _ = _rusanov_point(q[k], s, nx[k], ny[k], kind, prm,
-                                                          rho_cut, umax)
+            if wall:
+                s[0], s[1], s[2] = _mirror_point(q[k], nx[k], ny[k])
+                f[j, 0], f[j, 1], f[j, 2], _ = _rusanov_point(q[k], s, nx[k], ny[k], kind, prm,
+                                                              rho_cut, umax)
+            else:
+                f[j, 0], f[j, 1], f[j, 2] = _godunov_point(q[k], nx[k], ny[k], xkind, xprm,
+                                                           rho_cut, umax, h_rho, h_val)
             if want_alpha:
-                _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm, rho_cut,
-                                             umax)
-                am = aj if j == 0 else max(am, aj)
-        _integrate(f, g, lengths[e], F, e)
-        if want_alpha:
-            alpha[e] = am
-
-
-@nb.njit(**FAST)
-def godunov_exit_edges(q, nx, ny, g, kind, prm, xkind, xprm, rho_cut, umax, h_rho, h_val,
-                       edges, lengths, F, alpha, want_alpha, exit_speed, live):
-    """Exit fluxes in one pass: the exact Godunov flux into vacuum of the exit law
-    (``xkind``, ``xprm``) at each of the ``g`` points of each of ``edges``, integrated over
-    the edge into ``F[e]``, and with ``want_alpha`` the edge's largest wave speed into
-    ``alpha[e]``: with ``exit_speed`` that of :func:`_exit_speed` (the exit law is not the
-    flux law), else the Rusanov speed of the state under the law (``kind``, ``prm``); both 0
-    on edges that are not ``live``. The same arithmetic as :func:`vacuum_godunov`,
-    :func:`_exit_speed`, :func:`rusanov` and
-    :func:`~pedmesh.macro._kernels.integrate_edges` (to round-off)."""
-    f = np.empty((2, 3))
-    for a_ in range(edges.shape[0]):
-        e = edges[a_]
-        if not live[e]:
-            F[e, 0] = F[e, 1] = F[e, 2] = 0.0
-            if want_alpha:
-                alpha[e] = 0.0
-            continue
-        am = 0.0
-        for j in range(g):
-            k = a_ * g + j
-            f[j, 0], f[j, 1], f[j, 2] = _godunov_point(q[k], nx[k], ny[k], xkind, xprm, rho_cut,
-                                                       umax, h_rho, h_val)
-            if want_alpha:
-                if exit_speed:
-                    r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
-                    un = ux * nx[k] + uy * ny[k]
-                    aj = abs(un)
-                    if r > 0.0:
-                        aj = max(aj, 2.0 * f[j, 0] / r - un)
+                if exit_speed and not wall:
+                    aj = _exit_speed_point(q[k], f[j, 0], nx[k], ny[k], rho_cut, umax)
                 else:
                     _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm, rho_cut,
                                                  umax)
@@ -503,12 +477,19 @@ def relaxation_mean(Vi, ex, ey, U_f, law, tau, rho_cut, umax, dQ, cact):
 def _exit_speed(q, F, nx, ny, rho_cut, umax, out):
     """See :meth:`BarotropicModel.exit_wave_speed`."""
     for k in nb.prange(q.shape[0]):
-        r, ux, uy = _prim(q[k, 0], q[k, 1], q[k, 2], rho_cut, umax)
-        un = ux * nx[k] + uy * ny[k]
-        a = abs(un)
-        if r > 0.0:
-            a = max(a, 2.0 * F[k, 0] / r - un)
-        out[k] = a
+        out[k] = _exit_speed_point(q[k], F[k, 0], nx[k], ny[k], rho_cut, umax)
+
+
+@nb.njit(**FAST, inline="always")
+def _exit_speed_point(q, f_rho, nx, ny, rho_cut, umax):
+    """``max(|u.n|, 2 F_rho / rho - u.n)`` of the state ``q`` (3,) with exit mass flux
+    ``f_rho`` (see :meth:`BarotropicModel.exit_wave_speed`)."""
+    r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
+    un = ux * nx + uy * ny
+    a = abs(un)
+    if r > 0.0:
+        a = max(a, 2.0 * f_rho / r - un)
+    return a
 
 
 @nb.njit(**PAR)
@@ -663,17 +644,13 @@ class BarotropicModel(MacroModel):
         False (nothing done) for the other exit conditions."""
         want = alpha is not None
         al = alpha if want else _NO_ALPHA
-        if name == "wall":
-            wall_edges(q, nx, ny, g, self.law.kind, self.law.params, self.rho_vac, self.u_max,
-                       edges, lengths, F, al, want, live)
-            return True
-        if name == "exit" and exit_kind == "godunov":
-            x = self.exit_law
-            godunov_exit_edges(q, nx, ny, g, self.law.kind, self.law.params, x.kind, x.params,
-                               self.rho_vac, self.u_max, self._h_rho, self._h_val, edges,
-                               lengths, F, al, want, x is not self.law, live)
-            return True
-        return False
+        if name != "wall" and not (name == "exit" and exit_kind == "godunov"):
+            return False
+        x = self.exit_law
+        boundary_edges(q, nx, ny, g, name == "wall", self.law.kind, self.law.params, x.kind,
+                       x.params, self.rho_vac, self.u_max, self._h_rho, self._h_val, edges,
+                       lengths, F, al, want, x is not self.law, live)
+        return True
 
     def source(self, q, ex, ey):
         S = np.empty_like(q)
