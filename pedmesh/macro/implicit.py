@@ -59,7 +59,7 @@ A_IMPLICIT = 1e-2
 #: relative residual of the conjugate gradients (the correction is then applied as fluxes,
 #: so the mass stays exact to round-off whatever this is). On Example 2 (paper preset) 1e-4
 #: takes 4.9 iterations a solve, 1e-6 8.4 and 1e-8 12; 1e-4 and 1e-6 give T50 and T90 within
-#: 0.002 s and 0.002 s of each other, T100 within 0.1 s, and the same orders in the tests
+#: 0.002 s of each other, T100 within 0.1 s, and the same orders in the tests
 CG_RTOL = 1e-4
 
 

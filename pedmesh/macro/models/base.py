@@ -73,9 +73,9 @@ class MacroModel:
     #: exit_kind) -> bool``: the wall ('wall') or exit ('exit') fluxes of ``edges`` (states
     #: (k g, nv) at ``g`` points per edge, unit normals (k g,)) integrated over the edges
     #: into ``F`` in one pass, with each edge's largest wave speed into ``alpha`` unless it is
-    #: None (0 on edges not ``live``), exactly as :meth:`wall_flux`, :meth:`exit_flux` and
-    #: :meth:`exit_wave_speed` give them; False where it does not cover the case. None: the
-    #: solver calls those methods and integrates
+    #: None (0 on edges not ``live``), as :meth:`wall_flux`, :meth:`exit_flux` and
+    #: :meth:`exit_wave_speed` give them (to round-off); False where it does not cover the
+    #: case. None: the solver calls those methods and integrates
     boundary_flux = None
 
     def wall_flux(self, q, nx, ny, ex, ey):
