@@ -594,7 +594,7 @@ def _image_operators(mesh, tab, cutoff, rad, h0, gl_x, gl_w, Q_inf, Gam_max):
         ends = mesh.points[mesh.edges[sel]] @ tvec  # (k, 2) edge ends along the line
         lo, hi = _merged_intervals(ends.min(axis=1), ends.max(axis=1), 2e-6)
         # every (cell near[a], image b) within reach, then those whose segment crosses the
-        # wall (vectorised: one tree query and one shapely distance over all of them)
+        # wall on one of the intervals (vectorised: one tree query over all of them)
         found = itree.query_ball_point(c[near], cutoff + rad[near] + 2 * rad.max())
         counts = np.fromiter((len(f) for f in found), np.int64, len(found))
         if counts.sum() == 0:

@@ -172,6 +172,26 @@ def _pinv_t(U, s, Vt):
                      ).transpose(0, 2, 1)
 
 
+def _store_pairs(ci, ca, cb, both, cen, h, pairs, pair_inv, n_pairs) -> None:
+    """Of the candidate sector pairs (cells ``ca``, ``cb``) of cells ``ci``, the
+    well-conditioned ones (scaled |det| > 1e-3 of the largest entry squared), the first
+    MAX_PAIRS of each cell into ``pairs``, their inverse 2x2 matrices into ``pair_inv``, and
+    their count into ``n_pairs``: in the order listed, or with ``both`` (bool per candidate)
+    those of two face neighbours first, then by |det| from the largest (ties in the order
+    listed). Each cell's candidates must come in one call."""
+    M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]], axis=1)
+    d = np.abs(np.linalg.det(M))
+    good = d > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
+    ci, ca, cb, d, M = ci[good], ca[good], cb[good], d[good], M[good]
+    order = np.lexsort((ci,) if both is None else (-d, ~both[good], ci))  # (stable)
+    ci, ca, cb, inv = ci[order], ca[order], cb[order], np.linalg.inv(M[order])
+    rank = np.arange(len(ci)) - np.searchsorted(ci, ci)  # (place among the cell's pairs)
+    keep = rank < MAX_PAIRS
+    pairs[ci[keep], rank[keep]] = np.stack([ca[keep], cb[keep]], axis=1)
+    pair_inv[ci[keep], rank[keep]] = inv[keep]
+    np.add.at(n_pairs, ci[keep], 1)
+
+
 def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     """Stencils, least-squares operators and point basis values of a mesh (once per mesh)."""
     cache = mesh._cache
@@ -241,22 +261,8 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
         cand_i.append(fi[rows])
         cand_a.append(two[:, 0])
         cand_b.append(two[:, 1])
-    ci = np.concatenate(cand_i)
-    ca = np.concatenate(cand_a)
-    cb = np.concatenate(cand_b)
-    M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]], axis=1)
-    det = np.linalg.det(M)
-    good = np.abs(det) > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
-    ci, ca, cb, inv = ci[good], ca[good], cb[good], np.linalg.inv(M[good])
-    # the first MAX_PAIRS candidates of every cell, in the order listed above
-    order = np.argsort(ci, kind="stable")
-    ci, ca, cb, inv = ci[order], ca[order], cb[order], inv[order]
-    first = np.searchsorted(ci, ci)  # (first candidate of the same cell)
-    rank = np.arange(len(ci)) - first
-    keep = rank < MAX_PAIRS
-    pairs[ci[keep], rank[keep]] = np.stack([ca[keep], cb[keep]], axis=1)
-    pair_inv[ci[keep], rank[keep]] = inv[keep]
-    np.add.at(n_pairs, ci[keep], 1)
+    _store_pairs(np.concatenate(cand_i), np.concatenate(cand_a), np.concatenate(cand_b),
+                 None, cen, h, pairs, pair_inv, n_pairs)
     # boundary cells: also pairs with second-ring cells; the pairs of two face neighbours
     # first, then the best conditioned
     cand = []  # (cell, a, b, both face neighbours)
@@ -268,19 +274,8 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
                  if b >= 0 and b != i and b not in n1]
     if cand:
         c = np.array(cand, np.int64)
-        ci, ca, cb, both = c[:, 0], c[:, 1], c[:, 2], c[:, 3].astype(bool)
-        M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]],
-                     axis=1)
-        d = np.abs(np.linalg.det(M))
-        good = d > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
-        ci, ca, cb, both, d, M = ci[good], ca[good], cb[good], both[good], d[good], M[good]
-        order = np.lexsort((-d, ~both, ci))  # (stable: ties keep the order listed)
-        ci, ca, cb, inv = ci[order], ca[order], cb[order], np.linalg.inv(M[order])
-        rank = np.arange(len(ci)) - np.searchsorted(ci, ci)
-        keep = rank < MAX_PAIRS
-        pairs[ci[keep], rank[keep]] = np.stack([ca[keep], cb[keep]], axis=1)
-        pair_inv[ci[keep], rank[keep]] = inv[keep]
-        np.add.at(n_pairs, ci[keep], 1)
+        _store_pairs(c[:, 0], c[:, 1], c[:, 2], c[:, 3].astype(bool), cen, h, pairs,
+                     pair_inv, n_pairs)
     # Gauss points on the edges and basis values at the 9 points of every cell
     e = mesh.edges
     p0 = mesh.points[e[:, 0]]
