@@ -105,6 +105,45 @@ def free_room(*, length_m: float = 60.0, width_m: float = 4.0) -> Room:
                 start_areas=starts, name="free-walking")
 
 
+#: [m] the line across the passage where ``--entrance replay`` lets the experiment's people
+#: in (the camera's field ends at y = 8 m; everyone of every run crosses y = 7.5 m)
+REPLAY_LINE_Y = 7.5
+#: [m] half the depth of the entrance strip around that line; the room ends a little above it
+REPLAY_HALF_DEPTH = 0.25
+ENTRANCES = ("door", "replay")
+
+
+def replay_room(room: Room, traj) -> Room:
+    """``room`` (a corridor run) with its waiting area and entrance door replaced by the
+    experiment's measured inflow: the room ends just above y = REPLAY_LINE_Y, and its
+    people enter in a strip across that line, between the 2nd and 98th percentile of where
+    the experiment's people crossed it, each at the time one of them crossed it (PedPy's
+    crossing times, shifted to start at 0; :func:`pedmesh.validation.crossings`)."""
+    import shapely
+    from shapely.geometry import box
+
+    y0 = REPLAY_LINE_Y
+    top = y0 + REPLAY_HALF_DEPTH
+    times, xy = V.crossings(traj, [(-10.0, y0), (10.0, y0)])
+    cut = room.walkable.intersection(box(-1e3, -1e3, 1e3, top))
+    if cut.geom_type != "Polygon":
+        raise ValueError(f"{room.name}: cutting the room at y = {top:g} m leaves "
+                         f"{cut.geom_type}, not one polygon")
+    cut = shapely.set_precision(cut, 1e-9)
+    x_lo, x_hi = np.percentile(xy[:, 0], [2.0, 98.0])
+    x_min, _, x_max, _ = cut.bounds
+    x_lo, x_hi = max(float(x_lo), x_min), min(float(x_hi), x_max)
+    strip = [(x_lo, y0 - REPLAY_HALF_DEPTH), (x_hi, y0 - REPLAY_HALF_DEPTH), (x_hi, top),
+             (x_lo, top)]
+    return Room(list(cut.exterior.coords)[:-1], exits=room.exits,
+                start_areas=[StartArea("entrance", strip, count=len(times),
+                                       arrivals={"times": [float(t) for t in
+                                                           times - times[0]]})],
+                measurement_lines=room.measurement_lines,
+                measurement_areas=room.measurement_areas, name=f"{room.name}-replay",
+                description=f"{room.name} with the experiment's inflow at y = {y0:g} m")
+
+
 #: where the free speed is measured: x in [36, 58] m (at least 5 m after every start)
 FREE_AREA = ((36.0, 0.0), (58.0, 0.0), (58.0, 4.0), (36.0, 4.0))
 
@@ -162,8 +201,13 @@ def _rel(sim: float, ref: float) -> float:
 
 def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None,
                   t_end: float = 600.0, trajectory_rate: float = 10.0,
-                  fd_frames: str = "steady", log=print) -> dict[str, Any]:
-    """Simulate and measure the five corridor runs; rows and the pooled FD."""
+                  fd_frames: str = "steady", entrance: str = "door",
+                  log=print) -> dict[str, Any]:
+    """Simulate and measure the five corridor runs; rows and the pooled FD. ``entrance``:
+    ``door`` (the rooms of ``geometries/experiments/``: a waiting crowd and the entrance
+    door) or ``replay`` (:func:`replay_room`: the experiment's inflow)."""
+    if entrance not in ENTRANCES:
+        raise ValueError(f"unknown entrance {entrance!r} (entrances: {', '.join(ENTRANCES)})")
     experiments = measure_experiments(str(data_dir), fd_frames)
     if not experiments:
         raise SystemExit(f"no experiment files in {data_dir / 'data'} "
@@ -172,8 +216,12 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
     for name, exp in experiments.items():
         path = ROOMS / f"{name}.json"
         room = load_room(path)
+        geometry = str(path)
+        if entrance == "replay":
+            room = replay_room(room, V.load_experiment(Path(data_dir) / "data" / f"{name}.txt"))
+            geometry = None
         s = run_sfm(room, runs_dir / name, overrides=overrides, preset=preset, t_end=t_end,
-                    trajectory_rate=trajectory_rate, geometry=str(path))
+                    trajectory_rate=trajectory_rate, geometry=geometry)
         row: dict[str, Any] = {"run": name, "status": s.get("status"), "error": s["error"],
                                "wall_s": s["wall_s"], "n_initial": s.get("n_initial"),
                                "n_evacuated": s.get("n_evacuated")}
@@ -283,7 +331,7 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
                    parts: Iterable[str] = ("corridor",), data_dir: str | Path | None = None,
                    out_dir: str | Path | None = None, t_end: float = 600.0,
                    trajectory_rate: float = 10.0, fd_frames: str = "all",
-                   log=print) -> dict[str, Any]:
+                   entrance: str = "door", log=print) -> dict[str, Any]:
     """Run the ``parts`` (``corridor``, ``bottleneck``, ``free``) with parameter
     ``overrides`` on top of ``preset``; every number, the errors (:func:`errors_of`) and
     the wall time [s]. The runs go to ``out_dir/runs`` (a temporary directory if None)."""
@@ -299,10 +347,11 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
               "trajectory_rate": trajectory_rate, "log": log}
         results: dict[str, Any] = {
             "preset": preset, "overrides": dict(overrides or {}), "data_dir": str(data_dir),
-            "t_end_s": t_end, "trajectory_rate_hz": trajectory_rate, "parts": list(parts)}
+            "t_end_s": t_end, "trajectory_rate_hz": trajectory_rate, "parts": list(parts),
+            "entrance": entrance}
         if "corridor" in parts:
             results["corridor"] = corridor_part(data_dir, runs / "corridor",
-                                                fd_frames=fd_frames, **kw)
+                                                fd_frames=fd_frames, entrance=entrance, **kw)
         if "bottleneck" in parts:
             results["bottleneck"] = bottleneck_part(runs / "bottleneck", **kw)
         if "free" in parts:
@@ -426,6 +475,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="fundamental-diagram samples from every frame (default: the "
                          "experiments reach 3 /m^2 only outside their steady state) or from "
                          "the steady state only")
+    ap.add_argument("--entrance", choices=ENTRANCES, default="door",
+                    help="the corridor runs' entrance: 'door' (default: the waiting crowd "
+                         "and the entrance door of geometries/experiments/) or 'replay' "
+                         "(the experiment's measured inflow at y = 7.5 m)")
     args = ap.parse_args(argv)
     parts = [] if args.only_extra else ["corridor"]
     parts += [p for p, on in (("bottleneck", args.bottleneck), ("free", args.free)) if on]
@@ -434,7 +487,8 @@ def main(argv: list[str] | None = None) -> int:
     warnings.filterwarnings("ignore", module="pedpy")
     results = run_validation(parse_param_overrides(args.param), args.preset, parts=parts,
                              data_dir=args.data, out_dir=args.out, t_end=args.t_end,
-                             trajectory_rate=args.trajectory_rate, fd_frames=args.fd_frames)
+                             trajectory_rate=args.trajectory_rate, fd_frames=args.fd_frames,
+                             entrance=args.entrance)
     print(f"\nSFM validation: preset {args.preset or 'default'}, overrides "
           f"{results['overrides'] or 'none'}")
     for title, head, rows in tables(results):

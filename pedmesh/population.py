@@ -8,6 +8,12 @@ A start area of a room file may give (all optional)::
               "min": 0.46, "max": 2.22},                                        # [m/s]
     "radius": {"distribution": "uniform", "min": 0.2, "max": 0.25},             # [m]
     "exits": ["north", "east"]            # or {"north": 0.7, "east": 0.3} (fractions)
+    "arrivals": {"rate": 2.5, "start": 0}  # or {"times": [0.0, 0.4, ...]}  [1/s], [s]
+
+``arrivals`` makes the area an entrance (:class:`Arrivals`): its people are not in the room
+at the start but enter it in the area, one at each arrival time (a regular ``rate`` from
+``start``, or the given ``times``), as soon as there is room for them there. It replaces
+``premovement`` (a person who arrives walks at once).
 
 A number instead of a distribution is a constant. Distributions (:class:`Distribution`):
 
@@ -36,7 +42,7 @@ import numpy as np
 from .errors import GeometryError
 
 __all__ = ["Distribution", "distribution_from_spec", "Population", "draw_population",
-           "exit_choice_from_spec"]
+           "exit_choice_from_spec", "Arrivals", "arrivals_from_spec"]
 
 _KINDS = {
     "constant": ("value",),
@@ -202,6 +208,79 @@ def distribution_from_spec(spec: Any, what: str, where: str, *,
     return d
 
 
+@dataclass(frozen=True)
+class Arrivals:
+    """When the people of an entrance (a start area with ``arrivals``) enter the room.
+
+    ``times`` (count,) arrival times [s], ascending; ``rate`` [1/s] and ``start`` [s] when
+    they were given as a regular rate (``times = start + k / rate``), else None.
+    """
+
+    times: tuple[float, ...]
+    rate: float | None = None
+    start: float | None = None
+
+    @property
+    def count(self) -> int:
+        return len(self.times)
+
+    def cdf(self, t) -> np.ndarray:
+        """The fraction of the people who have arrived by time ``t`` [s] (the schedule's
+        empirical distribution; the continuum models add people by it)."""
+        tt = np.asarray(self.times, float)
+        return np.searchsorted(tt, np.asarray(t, float), side="right") / max(len(tt), 1)
+
+    def to_spec(self) -> dict[str, Any]:
+        """The room-file form (inverse of :func:`arrivals_from_spec`)."""
+        if self.rate is not None:
+            return {"rate": self.rate, "start": self.start}
+        return {"times": list(self.times)}
+
+
+def arrivals_from_spec(spec: Any, count: int | None, where: str) -> Arrivals:
+    """:class:`Arrivals` from a room file's ``arrivals`` value: ``{"rate": r [1/s], "start":
+    t0 [s] (default 0)}`` for ``count`` people, or ``{"times": [t, ...] [s]}`` (ascending,
+    >= 0; their number must equal ``count`` if that is given). One-line errors name
+    ``where``."""
+    if isinstance(spec, Arrivals):
+        spec = spec.to_spec()
+    label = f"{where}: 'arrivals'"
+    if not isinstance(spec, dict) or not (("rate" in spec) ^ ("times" in spec)):
+        raise GeometryError(f"{label} must be an object with either 'rate' [1/s] (and "
+                            f"optionally 'start' [s]) or 'times' [s], got {spec!r}")
+    allowed = {"rate", "start"} if "rate" in spec else {"times"}
+    bad = sorted(set(spec) - allowed)
+    if bad:
+        raise GeometryError(f"{label}: unknown key '{bad[0]}' (keys: {', '.join(sorted(allowed))})")
+
+    def number(v, name):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise GeometryError(f"{label}: '{name}' must be a finite number, got {v!r}")
+        return float(v)
+
+    if "rate" in spec:
+        rate = number(spec["rate"], "rate")
+        start = number(spec.get("start", 0.0), "start")
+        if rate <= 0:
+            raise GeometryError(f"{label}: 'rate' must be positive, got {rate:g}")
+        if start < 0:
+            raise GeometryError(f"{label}: 'start' must be >= 0, got {start:g}")
+        if count is None:
+            raise GeometryError(f"{label}: a 'rate' needs the area's 'count'")
+        return Arrivals(tuple(float(start + k / rate) for k in range(count)), rate, start)
+    times = spec["times"]
+    if not isinstance(times, (list, tuple)) or not times:
+        raise GeometryError(f"{label}: 'times' must be a non-empty list of times [s]")
+    tt = [number(v, "times") for v in times]
+    if min(tt) < 0:
+        raise GeometryError(f"{label}: 'times' must be >= 0, got {min(tt):g}")
+    if any(b < a for a, b in zip(tt, tt[1:])):
+        raise GeometryError(f"{label}: 'times' must be in ascending order")
+    if count is not None and count != len(tt):
+        raise GeometryError(f"{label}: {len(tt)} times for a 'count' of {count}")
+    return Arrivals(tuple(tt))
+
+
 def exit_choice_from_spec(spec: Any, where: str) -> tuple[tuple[str, float | None], ...]:
     """``((exit name, fraction), ...)`` from a start area's ``exits``: an object gives each
     exit's fraction of the area's people (adding up to 1); a list of names means 'any of
@@ -241,7 +320,8 @@ class Population:
     ``area`` (N,) start-area index; ``premovement`` (N,) [s]; ``speed`` (N,) free speed
     [m/s] (NaN: the model's U_f); ``radius`` (N,) [m] (NaN: the model's r); ``target`` (N,)
     index into ``targets``, the distinct exit sets (tuples of exit names; the empty tuple:
-    any exit)."""
+    any exit); ``arrival`` (N,) [s] when each enters the room (NaN: in it from the start;
+    entrances, start areas with ``arrivals``)."""
 
     area: np.ndarray
     premovement: np.ndarray
@@ -249,6 +329,15 @@ class Population:
     radius: np.ndarray
     target: np.ndarray
     targets: list[tuple[str, ...]]
+    arrival: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.arrival is None:
+            self.arrival = np.full(len(self.premovement), np.nan)
+
+    @property
+    def has_arrivals(self) -> bool:
+        return bool(np.any(np.isfinite(self.arrival)))
 
     @property
     def has_premovement(self) -> bool:
@@ -271,6 +360,7 @@ def draw_population(room, counts: list[int] | None = None, seed: int = 0) -> Pop
     speed = np.full(n, np.nan)
     radius = np.full(n, np.nan)
     target = np.zeros(n, np.int64)
+    arrival = np.full(n, np.nan)
     targets: list[tuple[str, ...]] = [()]
     root = np.random.SeedSequence(int(seed))
     streams = root.spawn(max(len(areas), 1))
@@ -280,6 +370,8 @@ def draw_population(room, counts: list[int] | None = None, seed: int = 0) -> Pop
         start += c
         rng_pre, rng_speed, rng_rad, rng_exit = (np.random.default_rng(s)
                                                  for s in streams[k].spawn(4))
+        if getattr(a, "arrivals", None) is not None:
+            arrival[sl] = np.resize(np.asarray(a.arrivals.times, float), c)
         if a.premovement is not None:
             pre[sl] = a.premovement.sample(rng_pre, c)
         if a.speed is not None:
@@ -302,7 +394,7 @@ def draw_population(room, counts: list[int] | None = None, seed: int = 0) -> Pop
                     if key not in targets:
                         targets.append(key)
                     target[sl][pick == e] = targets.index(key)
-    return Population(area, pre, speed, radius, target, targets)
+    return Population(area, pre, speed, radius, target, targets, arrival)
 
 
 def _quotas(frac: np.ndarray, n: int) -> np.ndarray:

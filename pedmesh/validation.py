@@ -240,10 +240,23 @@ def passage_times(traj, line: Sequence[Sequence[float]]) -> np.ndarray:
     """Sorted times [s] at which each pedestrian first crosses ``line`` (two or more points
     [m]): PedPy's crossing frame (the frame a movement across the line starts, a movement
     ending on the line not counted) divided by the frame rate."""
+    return crossings(traj, line)[0]
+
+
+def crossings(traj, line: Sequence[Sequence[float]]) -> tuple[np.ndarray, np.ndarray]:
+    """When and where each pedestrian first crosses ``line``: times [s] (as
+    :func:`passage_times`, sorted) and the positions (n, 2) [m] at those frames, in the
+    same order."""
     pedpy = _pedpy()
     _, crossing = pedpy.compute_n_t(traj_data=traj,
                                     measurement_line=pedpy.MeasurementLine(list(line)))
-    return np.sort(crossing[pedpy.FRAME_COL].to_numpy(dtype=float)) / traj.frame_rate
+    at = crossing[[pedpy.ID_COL, pedpy.FRAME_COL]].merge(
+        traj.data[[pedpy.ID_COL, pedpy.FRAME_COL, pedpy.X_COL, pedpy.Y_COL]],
+        on=[pedpy.ID_COL, pedpy.FRAME_COL], how="left")
+    frames = at[pedpy.FRAME_COL].to_numpy(dtype=float)
+    order = np.argsort(frames, kind="stable")
+    xy = at[[pedpy.X_COL, pedpy.Y_COL]].to_numpy(dtype=float)[order]
+    return frames[order] / traj.frame_rate, xy
 
 
 def quantile_window(times: Sequence[float], lo: float = FLOW_QUANTILES[0],

@@ -220,3 +220,123 @@ def test_continuum_premovement_is_a_delayed_source(model):
         if 5.0 < t < 10.0:
             assert waiting == pytest.approx(24.0 * (10.0 - t) / 5.0, rel=1e-9)
     assert run.max_mass_error < 1e-12
+
+
+# ------------------------------------------------------------------ entrances (arrivals)
+def entrance_room(arrivals, count=None, crowd=True):
+    """A 12 x 3 m corridor with its exit at x = 12, an entrance strip at its west end and
+    (``crowd``) ten people standing half way."""
+    gate = {"name": "gate", "polygon": [(0.1, 0.1), (0.6, 0.1), (0.6, 2.9), (0.1, 2.9)],
+            "arrivals": arrivals}
+    if count is not None:
+        gate["count"] = count
+    areas = [gate]
+    if crowd:
+        areas.append({"name": "crowd", "polygon": [(5, 0.5), (7, 0.5), (7, 2.5), (5, 2.5)],
+                      "count": 10})
+    return Room(outline=[(0, 0), (12, 0), (12, 3), (0, 3)],
+                exits=[{"name": "east", "polyline": [(12, 0), (12, 3)]}], start_areas=areas)
+
+
+def test_arrival_schedules():
+    from pedmesh.population import Arrivals
+
+    room = entrance_room({"rate": 2.0, "start": 1.5}, count=5, crowd=False)
+    arr = room.start_areas[0].arrivals
+    assert isinstance(arr, Arrivals) and arr.times == (1.5, 2.0, 2.5, 3.0, 3.5)
+    assert arr.cdf([1.4, 1.5, 2.9, 10.0]).tolist() == [0.0, 0.2, 0.6, 1.0]
+    timed = entrance_room({"times": [0, 0.3, 0.3, 4]}, crowd=False)
+    assert timed.start_areas[0].count == 4
+    pop = draw_population(timed, seed=3)
+    assert pop.arrival.tolist() == [0, 0.3, 0.3, 4] and pop.has_arrivals
+    assert np.isnan(draw_population(corridor()).arrival).all()
+
+
+@pytest.mark.parametrize("area, match", [
+    ({"arrivals": {"rate": 2.0}}, "a 'rate' needs the area's 'count'"),
+    ({"arrivals": {"rate": -1.0}, "count": 3}, "'rate' must be positive"),
+    ({"arrivals": {"rate": 1.0, "start": -2}, "count": 3}, "'start' must be >= 0"),
+    ({"arrivals": {"times": [2, 1]}}, "ascending"),
+    ({"arrivals": {"times": [0, 1]}, "count": 3}, "2 times for a 'count' of 3"),
+    ({"arrivals": {"rate": 1, "times": [0]}, "count": 1}, "either 'rate'"),
+    ({"arrivals": {"rate": 1, "every": 2}, "count": 1}, "unknown key 'every'"),
+    ({"arrivals": {"rate": 1}, "spacing": 1.0}, "takes 'count', not 'spacing'"),
+    ({"arrivals": {"rate": 1}, "count": 2, "premovement": 3.0},
+     "either 'premovement' or 'arrivals'"),
+])
+def test_bad_arrivals_are_clear_errors(area, match):
+    spec = {"name": "gate", "polygon": [(1, 1), (2, 1), (2, 2), (1, 2)], **area}
+    with pytest.raises(GeometryError, match=match):
+        Room(outline=[(0, 0), (10, 0), (10, 4), (0, 4)],
+             exits=[{"name": "e", "polyline": [(10, 0), (10, 4)]}], start_areas=[spec])
+
+
+def test_entrance_room_file_round_trip(tmp_path):
+    from pedmesh.io import load_room, save_room
+
+    for arrivals, count in (({"rate": 1.5, "start": 2.0}, 6), ({"times": [0.0, 0.5, 3.25]},
+                                                                None)):
+        room = entrance_room(arrivals, count)
+        assert load_room(save_room(room, tmp_path / "e.json")) == room
+
+
+def test_entrance_people_arrive_on_time_and_only_where_there_is_room():
+    # 20 people at 2 /s from t = 1 s: nobody is in the room before their time, each
+    # enters inside the strip, never overlapping anyone, and all of them leave
+    room = entrance_room({"rate": 2.0, "start": 1.0}, count=20)
+    run = _sfm(room, seed=0)
+    sim = run.sim
+    assert sim.n == 10 and sim.n_waiting == 20 and run.remaining == 30
+    arrival = run.population.arrival
+    seen: dict[int, float] = {}
+    while not run.done and sim.t < 60.0:
+        sim.step()
+        for k, i in enumerate(sim.ids[:sim.n].tolist()):
+            if i not in seen and np.isfinite(arrival[i]):
+                seen[i] = sim.t
+                x, y = sim.x[k]
+                assert 0.1 <= x <= 0.6 + 0.2 and 0.1 <= y <= 2.9  # in (or just past) the strip
+        x = sim.x[:sim.n]
+        if len(x) < 2:
+            continue
+        d = np.hypot(*(x[:, None, :] - x[None, :, :]).transpose(2, 0, 1))
+        np.fill_diagonal(d, np.inf)
+        r = sim.rad[:sim.n]
+        assert (d - r[:, None] - r[None, :]).min() > -0.05  # no one lands on anyone
+    assert run.done and sim.n_evacuated == 30
+    late = np.array([seen[i] - arrival[i] for i in seen])
+    assert len(seen) == 20 and late.min() >= 0.0  # nobody before their time
+    assert np.median(late) < 0.05  # at 2 /s on a 3 m strip there is room at once
+
+
+def test_a_blocked_entrance_waits():
+    # people arrive at 20 /s into a strip with three spots: they enter only as the
+    # spots clear, in the order of their times, so they come in later than scheduled
+    room = Room(outline=[(0, 0), (12, 0), (12, 1.2), (0, 1.2)],
+                exits=[{"name": "east", "polyline": [(12, 0), (12, 1.2)]}],
+                start_areas=[{"name": "gate", "polygon": [(0.1, 0.1), (0.5, 0.1), (0.5, 1.1),
+                                                          (0.1, 1.1)], "count": 30,
+                              "arrivals": {"rate": 20.0}}])
+    run = _sfm(room)
+    sim = run.sim
+    order = []
+    while not run.done and sim.t < 80.0:
+        sim.step()
+        order += [i for i in sim.ids[:sim.n].tolist() if i not in order]
+    assert run.done and sorted(order) == order  # first come, first in
+    assert np.nanmax(sim.exit_time) > 30 / 20.0 + 12 / 1.34 + 2.0  # held up at the strip
+
+
+@pytest.mark.parametrize("model", ["rdue", "eos"])
+def test_continuum_entrance_is_a_delayed_source(model):
+    from pedmesh.run.models import MODELS
+
+    room = entrance_room({"rate": 2.0, "start": 1.0}, count=10, crowd=False)
+    run = MODELS[model](room, room.mesh(max_area=0.5), {})
+    assert run.n_initial == pytest.approx(10.0, rel=1e-9) and run.waiting == run.n_initial
+    while run.t < 8.0:
+        run.step(8.0)
+        expected = 10.0 - min(max(np.floor((run.t - 1.0) * 2.0 + 1e-9) + 1, 0), 10)
+        assert run.waiting == pytest.approx(expected, abs=1e-9)
+        assert abs(run.solver.mass(run.state.Q) + run.waiting + run.evacuated
+                   - run.n_initial) < 1e-9

@@ -185,6 +185,10 @@ class Exit:
         return LineString(self.polyline)
 
 
+#: lattice spacing [m] of an entrance's placeholder positions (:meth:`StartArea.positions`)
+ENTRANCE_SPACING = 0.5
+
+
 @dataclass(frozen=True)
 class StartArea:
     """A polygon filled with pedestrians at the start of a run.
@@ -217,6 +221,13 @@ class StartArea:
     exits
         Optional exits this area's people head for: a list of exit names (the quickest
         of them) or ``{name: fraction}`` (fractions of the people, adding up to 1).
+    arrivals
+        Optional: the area is an entrance. Its people are not in the room at the start but
+        enter it here, one at each arrival time (:class:`pedmesh.population.Arrivals`:
+        ``{"rate": r, "start": t0}`` [1/s], [s] for ``count`` people, or ``{"times": [...]}``
+        [s]), each on the free spot of the area farthest from everyone once there is room;
+        the continuum models add them where the area is, at rest. Needs ``count`` (or
+        ``times``) and no ``premovement``.
     """
 
     name: str
@@ -228,12 +239,27 @@ class StartArea:
     speed: Any = None
     radius: Any = None
     exits: Any = None
+    arrivals: Any = None
 
     def __post_init__(self) -> None:
         _check_name(self.name, "start area")
         label = f"start area '{self.name}'"
         object.__setattr__(self, "polygon", _coerce_points(self.polygon, label, ring=True))
         _polygon(self.polygon, label)
+        if self.arrivals is not None:
+            if self.spacing is not None or self.density is not None:
+                raise GeometryError(f"{label}: an entrance ('arrivals') takes 'count', not "
+                                    f"'spacing' or 'density'")
+            if self.premovement is not None:
+                raise GeometryError(f"{label}: give either 'premovement' or 'arrivals' (people "
+                                    f"who arrive walk at once)")
+            from ..population import arrivals_from_spec
+
+            count = (None if self.count is None
+                     else _positive(self.count, "count", label, integer=True))
+            arr = arrivals_from_spec(self.arrivals, count, label)
+            object.__setattr__(self, "arrivals", arr)
+            object.__setattr__(self, "count", arr.count)
         given = [k for k in ("count", "spacing", "density") if getattr(self, k) is not None]
         if len(given) != 1:
             raise GeometryError(
@@ -273,7 +299,17 @@ class StartArea:
         return pts[inside]
 
     def positions(self, region: Polygon | None = None) -> np.ndarray:
-        """Initial pedestrian positions (k, 2) [m], restricted to ``region`` if given."""
+        """Initial pedestrian positions (k, 2) [m], restricted to ``region`` if given. An
+        entrance's people are not in the room at the start: their rows are the area's
+        lattice points at ``ENTRANCE_SPACING`` repeated ``count`` times (placeholders; the
+        social force model places each on a free spot when they arrive)."""
+        if self.arrivals is not None:
+            spots = self.lattice(ENTRANCE_SPACING, region)
+            if len(spots) == 0:
+                c = (self.shape if region is None else self.shape.intersection(region))
+                p = c.representative_point()
+                spots = np.array([[p.x, p.y]])
+            return np.resize(spots, (self.count, 2))
         if self.spacing is not None:
             return self.lattice(self.spacing, region)
         if self.density is not None:

@@ -133,9 +133,9 @@ class MacroRun:
         #: things the user should know about this run (e.g. a calibration for other parameters)
         self.warnings = list(getattr(self.model, "warnings", []))
         self.solver = FVSolver(mesh, self.model, self.fv_options)
-        #: start areas with a premovement time: (their density (m,) [ped/m^2], the
-        #: distribution, their number of people [ped]); their people appear where they
-        #: stand, at rest, as the distribution's CDF grows (a delayed source)
+        #: start areas with a premovement time or arrivals (entrances): (their density (m,)
+        #: [ped/m^2], the distribution or schedule, their number of people [ped]); their
+        #: people appear where they stand, at rest, as its CDF grows (a delayed source)
         self._delayed: list[tuple[np.ndarray, Any, float]] = []
         if rho0 is None:
             if room is None or not room.start_areas:
@@ -143,12 +143,13 @@ class MacroRun:
             parts = area_densities(room, mesh)
             rho0 = np.zeros(mesh.n_triangles)
             for a, rho_a in zip(room.start_areas, parts):
-                if a.premovement is None:
+                # an entrance's people arrive by its schedule (the same delayed source)
+                delay = a.arrivals if a.arrivals is not None else a.premovement
+                if delay is None:
                     rho0 += rho_a
                 else:
-                    rho0 += rho_a * float(a.premovement.cdf(0.0))
-                    self._delayed.append((rho_a, a.premovement,
-                                          self.solver.mass(rho_a[:, None])))
+                    rho0 += rho_a * float(delay.cdf(0.0))
+                    self._delayed.append((rho_a, delay, self.solver.mass(rho_a[:, None])))
             self._note_population(room)
         self.state = FVState(self.model.initial_state(rho0))
         self.controller = FVController(self.solver, self.state)

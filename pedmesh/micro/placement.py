@@ -30,7 +30,7 @@ def seeded_positions(room, seed: int, *, radius: float = 0.15, margin: float = 0
     parts = []
     for area in room.start_areas:
         base = area.positions(room.walkable)
-        if len(base) < 2:
+        if len(base) < 2 or area.arrivals is not None:  # (an entrance: placeholders)
             parts.append(base)
             continue
         spacing = float(cKDTree(base).query(base, k=2)[0][:, 1].min())

@@ -41,6 +41,8 @@ __all__ = ["Simulation", "PAIR_SKIN"]
 #: Verlet skin [m] of the per-step pair list (rebuilt within a step if anyone moves more
 #: than half of it)
 PAIR_SKIN = 0.2
+#: [m] free gap between an arriving pedestrian's body and everyone else's (entrances)
+ENTRANCE_GAP = 0.05
 
 
 @dataclass
@@ -78,8 +80,12 @@ class Simulation:
     population
         Per-pedestrian attributes (:class:`pedmesh.population.Population`, in the order of
         the positions): free speed, body radius (NaN: ``params.U_f``, ``params.r``),
-        premovement time (a pedestrian wants no speed before it) and the exits each heads
-        for (one route potential per distinct set of exits). Default: everyone alike.
+        premovement time (a pedestrian wants no speed before it), the exits each heads
+        for (one route potential per distinct set of exits) and the arrival times of an
+        entrance's people (:attr:`Population.arrival`; they enter in their start area, on
+        the free spot farthest from everyone, once their time has come and there is room;
+        those of one area in the order of their times). Default: everyone alike, in the
+        room from the start.
 
     Raises
     ------
@@ -119,17 +125,26 @@ class Simulation:
                 "area (outside the room or inside an obstacle)"
             )
         self._set_population(population, len(x))
-        self._check_overlaps(x)
         v = (np.zeros_like(x) if velocities is None
              else np.array(velocities, np.float64).reshape(N, 2))
         if not np.all(np.isfinite(v)):
             raise SimulationError("initial velocities contain non-finite values")
         self.n_initial = N
+        self.ids = np.arange(N, dtype=np.int64)
+        present = ~np.isfinite(self.arrival)
+        self._check_overlaps(x[present], self.ids[present])
+        self.n_waiting = 0
+        if not present.all():  # the entrances' people wait outside (rows n.. are unused)
+            self.rad_of, self.u0_of, self.toff_of = (self.rad.copy(), self.u0.copy(),
+                                                     self.toff.copy())
+            self._set_entrances(x)
+            for arr in (x, v, self.rad, self.u0, self._u_eff, self.tpre, self.toff, tri,
+                        self.ids):
+                arr[: int(present.sum())] = arr[present]
         self.x = x
         self.v = v
-        self.ids = np.arange(N, dtype=np.int64)
         self.tri = tri
-        self.n = N
+        self.n = int(present.sum())
         self.rho = np.zeros(N)
         self.t = 0.0
         self.steps = 0
@@ -206,6 +221,7 @@ class Simulation:
         self.rad = np.full(N, p.r)
         self.u0 = np.full(N, p.U_f)
         self.tpre = np.zeros(N)
+        self.arrival = np.full(N, np.nan)
         group = np.zeros(N, np.int64)
         self._targets: list[tuple[str, ...]] = [()]
         if pop is not None:
@@ -216,6 +232,10 @@ class Simulation:
             self.rad = np.where(np.isnan(pop.radius), p.r, pop.radius).astype(float)
             self.u0 = np.where(np.isnan(pop.speed), p.U_f, pop.speed).astype(float)
             self.tpre = np.asarray(pop.premovement, float).copy()
+            self.arrival = np.asarray(pop.arrival, float).copy()
+            self._area = np.asarray(pop.area, np.int64)
+            if np.any(self.arrival < 0):
+                raise SimulationError("arrival times must be >= 0")
             if np.any(self.rad <= 0) or np.any(self.u0 < 0) or np.any(self.tpre < 0):
                 raise SimulationError("body radii must be positive, free speeds and "
                                       "premovement times >= 0")
@@ -229,26 +249,101 @@ class Simulation:
         self.toff = group * self.mesh.n_triangles
         self._tbuf = np.empty(N, np.int64)
 
-    def _check_overlaps(self, x: np.ndarray) -> None:
+    def _check_overlaps(self, x: np.ndarray, ids: np.ndarray) -> None:
         from scipy.spatial import cKDTree
 
         tol = self.numerics.overlap_tolerance
         rmax = float(self.rad.max())
         lim = 2 * rmax - tol
-        if lim <= 0:
+        if lim <= 0 or len(x) < 2:
             return
         pairs = cKDTree(x).query_pairs(lim, output_type="ndarray")
         if len(pairs):
-            need = self.rad[pairs[:, 0]] + self.rad[pairs[:, 1]]
+            rad = self.rad[ids]
+            need = rad[pairs[:, 0]] + rad[pairs[:, 1]]
             d = np.hypot(*(x[pairs[:, 0]] - x[pairs[:, 1]]).T)
             bad = np.flatnonzero(d < need - tol)
             if len(bad):
                 k = int(bad[0])
-                i, j = (int(a) for a in pairs[k])
+                i, j = (int(ids[a]) for a in pairs[k])
                 raise SimulationError(
                     f"pedestrians {i} and {j} overlap: {d[k]:.3f} m apart, bodies need "
                     f"{need[k]:.3f} m (tolerance {tol} m)"
                 )
+
+    def _set_entrances(self, x: np.ndarray) -> None:
+        """The waiting lines of the entrances and their free spots (a lattice of the start
+        area one body diameter plus ENTRANCE_GAP apart, at least a radius from the walls)."""
+        room = self.mesh.room
+        if room is None:
+            raise SimulationError("arrival times need the mesh's room (its start areas)")
+        wait = np.flatnonzero(np.isfinite(self.arrival))
+        self._pending = {}  # area -> ids in the order of arrival
+        self._spots = {}  # area -> (spots (k, 2) [m], their triangles)
+        for a in np.unique(self._area[wait]):
+            ids = wait[self._area[wait] == a]
+            ids = ids[np.argsort(self.arrival[ids], kind="stable")]
+            self._pending[int(a)] = list(ids)
+            area = room.start_areas[int(a)]
+            rmax = float(self.rad[ids].max())
+            region = room.walkable.buffer(-(rmax + 0.01))
+            spots = area.lattice(2 * rmax + ENTRANCE_GAP, region)
+            if len(spots) == 0:
+                raise SimulationError(f"entrance '{area.name}' has no room for a body of radius "
+                                      f"{rmax:g} m away from the walls")
+            tri = self.mesh.locate(spots)
+            keep = tri >= 0
+            self._spots[int(a)] = (spots[keep], tri[keep])
+        self.n_waiting = len(wait)
+
+    def _admit(self) -> None:
+        """Let in the entrances' people whose time has come, where there is room."""
+        from ..speed import shape
+
+        R = self.params.R
+        w0 = 1.0 / (math.pi * R * R)
+        for a, queue in self._pending.items():
+            spots, stri = self._spots[a]
+            while queue and self.arrival[queue[0]] <= self.t + 1e-9:
+                i = queue[0]
+                n = self.n
+                ri = self.rad_of[i]
+                lo, hi = spots.min(axis=0) - 3.0, spots.max(axis=0) + 3.0
+                xs = self.x[:n]
+                near = np.flatnonzero(np.all((xs >= lo) & (xs <= hi), axis=1))
+                if len(near):
+                    d = np.hypot(spots[:, None, 0] - xs[near][None, :, 0],
+                                 spots[:, None, 1] - xs[near][None, :, 1])
+                    gap = (d - self.rad[near][None, :]).min(axis=1) - ri
+                    k = int(np.argmax(gap))
+                    if gap[k] < ENTRANCE_GAP:
+                        break  # no room yet: this one (and those after it) wait
+                    rho = w0 + w0 * float(np.exp(-(d[k] / R) ** 2).sum())
+                else:
+                    k = int(np.argmin(np.hypot(*(spots - spots.mean(axis=0)).T)))
+                    rho = w0
+                queue.pop(0)
+                self.x[n] = spots[k]
+                self.tri[n] = stri[k]
+                self.rad[n], self.u0[n], self.tpre[n] = ri, self.u0_of[i], 0.0
+                self._u_eff[n] = self.u0_of[i]
+                self.toff[n] = self.toff_of[i]
+                self.ids[n] = i
+                self.rho[n] = rho
+                self.n = n + 1
+                e = self._direction(n)
+                self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
+                self.n_waiting -= 1
+
+    def _direction(self, k: int) -> np.ndarray:
+        """The desired direction (2,) of row ``k``."""
+        if self._use_const:
+            return self._const_u / max(float(np.hypot(*self._const_u)), 1e-300)
+        from ..eikonal.direction import _interpolate
+
+        out = np.zeros((1, 2))
+        _interpolate(self._dpack, self.tri[k:k + 1] + self.toff[k], self.x[k:k + 1], out)
+        return out[0]
 
     def _build_cells(self) -> None:
         from . import _kernels as K
@@ -316,9 +411,14 @@ class Simulation:
         """Advance one time step; returns the number of pedestrians that left."""
         from . import _kernels as K
 
-        if self.n == 0:
-            return 0
         nm = self.numerics
+        if self.n_waiting:
+            self._admit()
+        if self.n == 0:
+            if self.n_waiting:  # nobody inside yet, people still to arrive: the clock moves
+                self.steps += 1
+                self.t = self.steps * nm.dt
+            return 0
         if not self._use_const and self.steps > 0 and self.t >= self._next_route - 1e-9:
             self._route()
         n, dt, mesh = self.n, nm.dt, self.mesh
@@ -371,9 +471,9 @@ class Simulation:
         return n_gone
 
     def run(self, t_end: float, callback: Callable[["Simulation"], None] | None = None) -> None:
-        """Step until everyone has left or ``t >= t_end`` [s]; ``callback(self)`` after each
-        step."""
-        while self.n > 0 and self.t < t_end - 1e-9:
+        """Step until everyone has left (and every entrance's people arrived) or ``t >=
+        t_end`` [s]; ``callback(self)`` after each step."""
+        while (self.n > 0 or self.n_waiting > 0) and self.t < t_end - 1e-9:
             self.step()
             if callback is not None:
                 callback(self)
@@ -401,7 +501,12 @@ class Simulation:
 
     @property
     def n_evacuated(self) -> int:
-        return self.n_initial - self.n
+        return self.n_initial - self.n - self.n_waiting
+
+    @property
+    def finished(self) -> bool:
+        """Everyone has left (nobody inside, nobody still to arrive)."""
+        return self.n == 0 and self.n_waiting == 0
 
     def desired_directions(self) -> np.ndarray:
         """(n, 2) current desired directions of the pedestrians still inside."""

@@ -86,7 +86,7 @@ class SFMRun:
         src = room if room is not None else mesh.room
         if src is not None and any(
                 getattr(a, k) is not None for a in src.start_areas
-                for k in ("premovement", "speed", "radius", "exits")):
+                for k in ("premovement", "speed", "radius", "exits", "arrivals")):
             from ..population import draw_population
 
             n = len(positions) if positions is not None else None
@@ -132,11 +132,12 @@ class SFMRun:
 
     @property
     def remaining(self) -> float:
-        return float(self.sim.n)
+        """Pedestrians inside, and still to arrive through an entrance."""
+        return float(self.sim.n + self.sim.n_waiting)
 
     @property
     def done(self) -> bool:
-        return self.sim.n == 0
+        return self.sim.finished
 
     def step(self, t_limit: float = math.inf) -> None:
         """One step of the fixed dt (``t_limit`` is not needed: frames fall on steps)."""

@@ -17,7 +17,11 @@ Schema (keys not listed are an error)::
                        # optional (pedmesh.population): distributions of the premovement
                        # time [s], free speed [m/s], body radius [m]; the exits to take
                        "premovement": {"distribution": "uniform", "min": 0, "max": 60},
-                       "speed": 1.34, "radius": 0.2, "exits": ["north"]}],
+                       "speed": 1.34, "radius": 0.2, "exits": ["north"]},
+                      # an entrance: people enter here at a rate [1/s] from a start [s]
+                      # (or at "times": [...] [s]), instead of standing here at t = 0
+                      {"name": "gate", "polygon": [...], "count": 50,
+                       "arrivals": {"rate": 1.5, "start": 0}}],
       "measurement_lines": [{"name": "line", "polyline": [[x, y], ...]}],
       "measurement_areas": [{"name": "area", "polygon": [[x, y], ...]}]
     }
@@ -58,7 +62,7 @@ _ELEMENTS: dict[str, tuple[type, str, str, tuple[str, ...]]] = {
     "exits": (Exit, "exit", "polyline", ()),
     "start_areas": (StartArea, "start area", "polygon", ("count", "spacing", "density",
                                                          "premovement", "speed", "radius",
-                                                         "exits")),
+                                                         "exits", "arrivals")),
     "measurement_lines": (MeasurementLine, "measurement line", "polyline", ()),
     "measurement_areas": (MeasurementArea, "measurement area", "polygon", ()),
 }
