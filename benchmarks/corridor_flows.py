@@ -1,13 +1,13 @@
-"""Why the validated preset misses three Jülich corridor flows: checks of the misses.
+"""The Jülich corridor flows: the door-modelled entrance against the experiment's inflow.
 
-The validated preset (``docs/validation/fit.md``) meets the bottleneck flows and the
-fundamental diagram, but its exit flows of the uni-directional corridor runs are 20 %
-(uo-070, entrance 0.7 m) and 27 % (uo-100, 1.0 m) too low and 18 % (uo-095, exit 0.95 m)
-too high. This script checks that the misses are the model's, not noise or a guess in
-the rooms, and prints the bound that follows:
+The validated preset (``docs/validation/fit.md``) is fitted with the corridor runs fed by
+the experiment's own inflow (``benchmarks/validation.py --entrance replay``). Modelled as
+in ``geometries/experiments/`` instead (a crowd in a guessed waiting area pressing through
+the entrance door), the narrow-entrance runs uo-070 (0.7 m) and uo-100 (1.0 m) come out
+20-30 % too slow. This script checks what the misses and the fit's results are made of:
 
-1. **Seeds**: every corridor room with ``--seeds`` start lattices (jittered by the seed).
-   The spread of a room's flow over seeds is its noise.
+1. **Seeds** (door rooms): every corridor room with ``--seeds`` start lattices (jittered
+   by the seed). The spread of a room's flow over seeds is its noise.
 2. **Waiting area**: the rooms' waiting areas are a guess (the experiment's is not
    documented). uo-070, uo-100 and uo-180 rerun with the same people packed at 1 and at
    3 /m^2 (the shipped rooms: about 1.7).
@@ -17,16 +17,22 @@ the rooms, and prints the bound that follows:
    uo-100 and uo-095 against the body diameter 2r, and the two runs again with the sliding
    friction kappa 100 times larger: whether pushing through body contact, the model's only
    force that grows with the crowd pressing from behind, takes part at all.
+5. **The experiment's inflow** (``benchmarks/validation.py --entrance replay``): each room
+   fed by the experiment's own people at the times they crossed y = 7.5 m, with
+   ``--seeds`` realisations (each entering person's spot jittered by the seed): the exit
+   flows the model gives when the entrance is the experiment's and not its own door;
+   and the pooled Voronoi speed at 1, 2, 3 /m^2 of each seed's five runs (every frame),
+   the fit's fundamental-diagram targets, per realisation.
 
-Then per metre of door width: the experiment's entrance flow against its exit flow at
-almost the same width (uo-100's 1.0 m entrance against uo-095's 0.95 m exit), and the
-simulation's. For both flows to be within 10 %, the ratio sim/experiment of the two runs
-can differ by at most 1.1/0.9 = 1.22; a change that scales every door's capacity alike
-leaves that ratio as it is.
+Then per metre of door width (door rooms): the experiment's entrance flow against its exit
+flow at almost the same width (uo-100's 1.0 m entrance against uo-095's 0.95 m exit), and
+the simulation's. For both flows to be within 10 %, the ratio sim/experiment of the two
+runs can differ by at most 1.1/0.9 = 1.22; a change that scales every door's capacity
+alike leaves that ratio as it is.
 
     python benchmarks/corridor_flows.py [--seeds 4] [--data DIR] [--preset validated]
 
-About 2 minutes on one core (each run 3-5 s plus PedPy's measurement).
+About 4 minutes on two cores (each run 1-5 s plus PedPy's measurement).
 """
 
 from __future__ import annotations
@@ -50,7 +56,7 @@ WAITING_DENSITIES = (1.0, 3.0)  # [1/m^2]
 WAITING_RUNS = ("uo-070-180-180", "uo-100-180-180", "uo-180-180-180")
 
 
-def exit_flow(room, geometry: str, out: Path, *, preset: str, seed: int | None = None,
+def exit_flow(room, geometry: str | None, out: Path, *, preset: str, seed: int | None = None,
               static_routes: bool = False, overrides: dict | None = None) -> float:
     """The exit flow J [1/s] of one SFM run of ``room``, measured as the experiment's."""
     options: dict = {"seed": seed} if seed is not None else {}
@@ -105,15 +111,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--preset", default="validated")
     args = ap.parse_args(argv)
     data_dir = args.data or B.default_data_dir()
-    exps = B.measure_experiments(str(data_dir), "steady")
+    exps = B.measure_experiments(str(data_dir), "all")
     if not exps:
         raise SystemExit(f"no experiment files in {data_dir / 'data'}")
     ref = {name: e["flow"]["exit"] for name, e in exps.items()}
     sims: dict[str, list[float]] = {}
     with tempfile.TemporaryDirectory(prefix="pedmesh-corridor-") as tmp:
         tmp = Path(tmp)
-        print(f"1. seeds (preset {args.preset}): exit flow J [1/s], error against the "
-              "experiment")
+        print(f"1. seeds (preset {args.preset}, door rooms): exit flow J [1/s], error "
+              "against the experiment")
         for name in ref:
             path = B.ROOMS / f"{name}.json"
             room = load_room(path)
@@ -153,6 +159,36 @@ def main(argv: list[str] | None = None) -> int:
                           seed=1, overrides={"kappa": 100 * prm["kappa"]})
             print(f"   {name}: closest {d:.3f} m; kappa x 100: {j:.2f} (seed 1 as shipped: "
                   f"{sims[name][0]:.2f})")
+        print(f"5. the experiment's inflow (--entrance replay: each person enters at y = "
+              f"{B.REPLAY_LINE_Y:g} m when they did in the experiment), seeds 1-{args.seeds}")
+        fd: dict[int, tuple[list, list]] = {s: ([], []) for s in range(1, args.seeds + 1)}
+        for name in ref:
+            room = B.replay_room(load_room(B.ROOMS / f"{name}.json"),
+                                 V.load_experiment(Path(data_dir) / "data" / f"{name}.txt"))
+            j = []
+            for s in range(1, args.seeds + 1):
+                out = tmp / f"{name}-replay-s{s}"
+                j.append(exit_flow(room, None, out, preset=args.preset, seed=s))
+                m = V.measure(V.load_run(out), V.corridor_setup(room.walkable),
+                              fd_frames="all")
+                fd[s][0].append(m["fd_density"])
+                fd[s][1].append(m["fd_speed"])
+            j = np.array(j)
+            print(f"   {name}: experiment {ref[name]:.2f}; simulation {j.mean():.2f} "
+                  f"(seeds {j.min():.2f}-{j.max():.2f}), {j.mean() / ref[name] - 1:+.0%} "
+                  f"({j.min() / ref[name] - 1:+.0%} to {j.max() / ref[name] - 1:+.0%})")
+        exp_fd = V.bin_fd(np.concatenate([e["fd_density"] for e in exps.values()]),
+                          np.concatenate([e["fd_speed"] for e in exps.values()]),
+                          B.FD_DENSITIES, B.FD_HALF_WIDTH)
+        print("   pooled Voronoi speed [m/s] at " + ", ".join(f"{d:g}" for d in B.FD_DENSITIES)
+              + " /m^2 (all frames of the five runs), error against the experiment's "
+              + " / ".join(f"{b['speed']:.2f}" for b in exp_fd))
+        for s, (dens, speeds) in fd.items():
+            bins = V.bin_fd(np.concatenate(dens), np.concatenate(speeds), B.FD_DENSITIES,
+                            B.FD_HALF_WIDTH)
+            print(f"   seed {s}: " + ", ".join(
+                f"{b['speed']:.2f} ({b['speed'] / e['speed'] - 1:+.0%}, n {b['n']})"
+                for b, e in zip(bins, exp_fd)))
     ent, ext = "uo-100-180-180", "uo-180-180-095"
     if ent in sims and ext in sims:
         b_ent, b_ext = 1.0, V.experiment_exit_width(ext)

@@ -4,16 +4,26 @@ What is fixed
     ``preset=weidmann`` with ``speed_law=weidmann``, ``density_self=0`` and ``U_f=1.34``
     m/s: a lone walker walks at Weidmann's free speed by construction (checked at the end
     with the free-walking part). Every other parameter keeps its preset value (r = 0.15 m,
-    R = 0.7 m, A = 2000 N, B = 0.08 m, k, kappa, m = 60 kg).
+    R = 0.7 m, B = 0.08 m, k, kappa, m = 60 kg).
 
-What is fitted (three parameters, bounds = the physically plausible range)
+What is fitted (four parameters, bounds = the physically plausible range)
     ``gamma_w`` [1/m^2] in [1.5, 4.0] (Weidmann: 1.913), ``tau`` [s] in [0.3, 1.0] (Table 1:
-    0.5) and ``rho_jam`` [1/m^2] in [5, 10] (Weidmann: 5.4). ``gamma_w`` and ``rho_jam``
-    shape the desired speed U_e(rho) = U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam))) at the
-    densities of the experiments; ``tau`` sets the driving force m U_f / tau against the
-    repulsion, i.e. how hard a queue presses through a door. (The body radius r was left at
-    0.15 m: a probe with r = 0.2 m clogged the 0.7 m entrance of uo-070 and lowered every
-    narrow-door flow, which is already the weak side of the model.)
+    0.5), ``rho_jam`` [1/m^2] in [5, 10] (Weidmann: 5.4) and the repulsion strength ``A``
+    [N] in [400, 3000] (Table 1: 2000). ``gamma_w`` and ``rho_jam`` shape the desired speed
+    U_e(rho) = U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam))) at the densities of the
+    experiments; ``tau`` sets the driving force m U_f / tau against the repulsion, i.e. how
+    hard a queue presses through a door, and ``A`` how strongly it is held apart. (The body
+    radius r was left at 0.15 m: probes with r = 0.18 and 0.2 m raised the corridor-fed
+    exit flow of uo-095, which is too high already.)
+
+The corridor runs' entrance
+    The corridor runs are fed with the experiment's own inflow (``validation.py --entrance
+    replay``: each person enters at y = 7.5 m when they crossed it in the experiment). The
+    experiment let its people in at a controlled rate from an unrecorded waiting area, so
+    the entrance flow is the experiment's boundary condition, not something to predict; a
+    first fit (``docs/validation/fit_evaluations_door.csv``) modelled it as a door with a
+    waiting crowd and could not meet the narrow-entrance runs and uo-095's exit at once
+    (``docs/validation/corridor_flows.md``).
 
 Objective (a weighted sum of squares of relative errors, each divided by its tolerance)
     Measured by :func:`validation.run_validation` (parts ``corridor`` and ``bottleneck``,
@@ -32,11 +42,12 @@ Objective (a weighted sum of squares of relative errors, each divided by its tol
     dropped (its error is nan) and replaced by the penalty.
 
 Method
-    1. A coarse grid (3 x 3 x 3: gamma_w 1.9/2.5/3.1, tau 0.3/0.4/0.5, rho_jam 5/6/7, chosen
-       from a few flow-only probes: tau below 0.5 and gamma_w above Weidmann's raise the
-       narrow-door flows, which are too low, while rho_jam and gamma_w raise the wide ones,
-       which then overshoot), evaluated ``--jobs`` at a time in separate processes (each
-       evaluation in its own temporary output directory, ``NUMBA_NUM_THREADS=1``).
+    1. A coarse grid (3 x 2 x 2 x 3: gamma_w 1.9/2.2/2.5, tau 0.3/0.4, rho_jam 5/5.6,
+       A 700/1000/1400 N, chosen from about 30 probes of single points: a weaker repulsion
+       lowers the corridor-fed exit flow of uo-095 more than the bottleneck flows, and
+       gamma_w near Weidmann's slows the corridor at 1.5 /m^2 as uo-145 needs), evaluated
+       ``--jobs`` at a time in separate processes (each evaluation in its own temporary
+       output directory, ``NUMBA_NUM_THREADS=1``).
     2. ``scipy.optimize.minimize(method="Nelder-Mead")`` with bounds, from the best grid
        point, in coordinates scaled to [0, 1] per parameter, an initial simplex of half a
        grid step along each axis (towards the interior), ``xatol`` 0.015 (1.5 % of each
@@ -56,7 +67,8 @@ Output
 
         python benchmarks/validation.py --preset weidmann --param speed_law=weidmann \\
             --param density_self=0 --param U_f=1.34 --param gamma_w=... --param tau=... \\
-            --param rho_jam=... --bottleneck --free --out docs/validation/validated
+            --param rho_jam=... --param A=... --entrance replay --bottleneck --free \\
+            --out docs/validation/validated
 
 Usage::
 
@@ -100,12 +112,15 @@ PRESET = "weidmann"
 FIXED: dict[str, Any] = {"speed_law": "weidmann", "density_self": 0, "U_f": 1.34}
 #: fitted parameters: (lower, upper) bound, rounding (decimals), grid levels
 FIT: dict[str, dict[str, Any]] = {
-    "gamma_w": {"bounds": (1.5, 4.0), "decimals": 3, "grid": (1.9, 2.5, 3.1)},
-    "tau": {"bounds": (0.3, 1.0), "decimals": 4, "grid": (0.3, 0.4, 0.5)},
-    "rho_jam": {"bounds": (5.0, 10.0), "decimals": 3, "grid": (5.0, 6.0, 7.0)},
+    "gamma_w": {"bounds": (1.5, 4.0), "decimals": 3, "grid": (1.9, 2.2, 2.5)},
+    "tau": {"bounds": (0.3, 1.0), "decimals": 4, "grid": (0.3, 0.4)},
+    "rho_jam": {"bounds": (5.0, 10.0), "decimals": 3, "grid": (5.0, 5.6)},
+    "A": {"bounds": (400.0, 3000.0), "decimals": 0, "grid": (700.0, 1000.0, 1400.0)},
 }
 NAMES = tuple(FIT)
 PARTS = ("corridor", "bottleneck")
+#: the corridor runs' entrance (benchmarks/validation.py): the experiment's own inflow
+ENTRANCE = "replay"
 
 CORRIDOR_RUNS = ("uo-070-180-180", "uo-100-180-180", "uo-145-180-180", "uo-180-180-180",
                  "uo-180-180-095")
@@ -123,7 +138,8 @@ FREE_TOL = 0.05  # check of the free speed (not fitted): within 5 % of 1.34 m/s
 DEFAULT_CSV = ROOT / "docs" / "validation" / "fit_evaluations.csv"
 OUT_JSON = ROOT / "pedmesh" / "data" / "validated.json"
 OUT_MD = ROOT / "docs" / "validation" / "fit.md"
-FIXED_KEY = json.dumps({"preset": PRESET, **FIXED, "parts": list(PARTS)}, sort_keys=True)
+FIXED_KEY = json.dumps({"preset": PRESET, **FIXED, "parts": list(PARTS),
+                        "entrance": ENTRANCE}, sort_keys=True)
 
 # CSV columns: the fitted parameters, then the simulated values and relative errors
 SIM_COLS = ([f"J_exit_sim/{r}" for r in CORRIDOR_RUNS]
@@ -159,7 +175,8 @@ def evaluate(x: dict[str, float], data_dir: str | None = None,
     x = rounded(x)
     t0 = time.perf_counter()
     res = run_validation({**FIXED, **x}, PRESET, parts=PARTS, data_dir=data_dir,
-                         out_dir=keep_dir, fd_frames="all", log=lambda *a, **k: None)
+                         out_dir=keep_dir, fd_frames="all", entrance=ENTRANCE,
+                         log=lambda *a, **k: None)
     rec: dict[str, Any] = dict(x)
     failed = clogged = 0
     rows = {r["run"]: r for r in res["corridor"]["rows"]}
@@ -473,9 +490,10 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         f"Weighted least squares of relative errors (each over its tolerance: corridor exit "
         f"flows 10 %, bottleneck J/b 0.3/1.9, Voronoi speeds at 1/2/3 /m^2 15 %; +{PENALTY:g} "
         f"per failed or clogged run), measured by benchmarks/validation.py run_validation "
-        f"(corridor + bottleneck, fd_frames=all). Coarse grid {len(grid)} points "
-        f"(gamma_w {FIT['gamma_w']['grid']}, tau {FIT['tau']['grid']}, rho_jam "
-        f"{FIT['rho_jam']['grid']}), then bounded Nelder-Mead from the best grid point "
+        f"(corridor with the experiment's inflow, entrance={ENTRANCE}, + bottleneck, "
+        f"fd_frames=all). Coarse grid {len(grid)} points ("
+        + ", ".join(f"{n} {FIT[n]['grid']}" for n in NAMES)
+        + "), then bounded Nelder-Mead from the best grid point "
         f"(scaled coordinates, xatol 1.5 % of each range, {len(nmr)} new runs); "
         f"benchmarks/fit_validated.py, evaluations in docs/validation/fit_evaluations.csv")
     out = {
@@ -538,8 +556,8 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                   + " ".join(_pc(r[f"err/fd/rho={d:g}"]) for d in FD_RHOS)
                   + f" | {float(r['seconds']):.0f} |")
     md += ["", "Full table of the fitted set:", "", "```",
-           f"python benchmarks/validation.py --preset {PRESET} {params} --bottleneck --free "
-           "--out docs/validation/validated", "```", ""]
+           f"python benchmarks/validation.py --preset {PRESET} {params} --entrance "
+           f"{ENTRANCE} --bottleneck --free --out docs/validation/validated", "```", ""]
     OUT_MD.parent.mkdir(parents=True, exist_ok=True)
     OUT_MD.write_text("\n".join(md))
     return out

@@ -8,7 +8,14 @@
    the exit (y = -4) and at y = 0, steady-state Voronoi density and speed in the area
    (0, -2)-(1.8, 0), and the pooled fundamental diagram at 1, 2, 3 /m^2 against the
    experiment's and Weidmann's (samples from every frame with ``--fd-frames all``, the
-   default, or from the steady state only).
+   default, or from the steady state only). ``--entrance`` says how people get into the
+   corridor: ``door`` (the default; the rooms as they are: a waiting crowd pressing
+   through the entrance door) or ``replay`` (the experiment's inflow: the room ends at
+   y = 7.75 m and each of the experiment's people enters at the time they crossed
+   y = 7.5 m, :func:`replay_room`). The experiment let its people in at a controlled rate
+   (``../shared/experiments/README.md``; its waiting area is not recorded), so ``replay``
+   is the experiment's boundary condition; ``door`` asks the model to predict the
+   entrance flow as well.
 2. ``--bottleneck``: 150 people waiting directly in front of a 2.8 m long corridor of width
    b = 0.8, 1.2, 1.8, 2.5 m (the widths of Seyfried et al. 2009 / Liddle et al. 2011; the
    room is generated here, its proportions are this script's choice): specific flow J/b
@@ -17,7 +24,8 @@
    the free walking speed 1.34 m/s.
 
     python benchmarks/validation.py [--data DIR] [--preset NAME] [--param NAME=VALUE ...]
-                                    [--bottleneck] [--free] [--only-extra] [--out DIR]
+                                    [--entrance door|replay] [--bottleneck] [--free]
+                                    [--only-extra] [--out DIR]
 
 ``--data`` is the experiments directory (``data/*.txt``; default ``$PEDMESH_EXPERIMENTS``
 or ``<repo>/../shared/experiments``). Simulations run one at a time; set

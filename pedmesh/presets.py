@@ -13,10 +13,11 @@ model everything).
   fundamental diagram (free speed 1.34 m/s, jam density 5.4 /m^2). Literature values, not
   fitted to experiments.
 * ``validated`` (the default): Weidmann's law with the free speed 1.34 m/s felt without
-  one's own kernel share (``density_self=0``), ``gamma_w``, ``rho_jam`` and ``tau`` fitted by
-  ``benchmarks/fit_validated.py`` to the Juelich corridor runs, bottleneck flows and the
-  fundamental diagram (``pedmesh/data/validated.json``; the table in
-  ``docs/validation/fit.md``), Table 1 otherwise; ``eos`` takes the equation of state
+  one's own kernel share (``density_self=0``), ``gamma_w``, ``rho_jam``, ``tau`` and the
+  repulsion strength ``A`` fitted by ``benchmarks/fit_validated.py`` to the Juelich corridor
+  runs (fed with the experiment's inflow), bottleneck flows and the fundamental diagram
+  (``pedmesh/data/validated.json``; the table in ``docs/validation/fit.md``), Table 1
+  otherwise; ``eos`` takes the equation of state
   measured with these parameters (``pedmesh/data/eos_validated.json``).
 
 ``pedmesh presets`` lists them with values, units and sources.

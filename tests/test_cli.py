@@ -85,7 +85,10 @@ def test_run_command_writes_the_contract(geometries_dir, tmp_path, capsys):
                 "steps", "dt", "wall_time_s", "parameters"):
         assert key in s
     assert s["model"] == "sfm" and s["n_evacuated"] == 150 and s["status"] == "finished"
-    assert s["parameters"]["A"] == 2000.0 and s["parameters"]["output_interval"] == 5.0
+    from pedmesh.presets import get_preset
+
+    A = get_preset("validated").values["A"].value  # the default preset's
+    assert s["parameters"]["A"] == A and s["parameters"]["output_interval"] == 5.0
     assert s["t_evac_50"] < s["t_evac_90"] < s["t_evac_100"]
     rows = (out / "evacuation.csv").read_text().splitlines()
     assert rows[0] == "t,evacuated"

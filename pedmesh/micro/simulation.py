@@ -86,6 +86,11 @@ class Simulation:
         the free spot farthest from everyone, once their time has come and there is room;
         those of one area in the order of their times). Default: everyone alike, in the
         room from the start.
+    seed
+        With a seed, each entering person's spot is moved by a uniform random offset of
+        up to ``ENTRANCE_GAP / 2`` in x and y (so that seeds give different realisations
+        of a run with entrances, as jittered start positions do for start areas); None:
+        the lattice spots.
 
     Raises
     ------
@@ -101,8 +106,9 @@ class Simulation:
                  params: SocialForceParams | None = None,
                  numerics: SFMNumerics | None = None,
                  desired_velocity: np.ndarray | None = None,
-                 reroute: bool = True, population=None) -> None:
+                 reroute: bool = True, population=None, seed: int | None = None) -> None:
         self.mesh = mesh
+        self._rng = None if seed is None else np.random.default_rng(seed)
         self.params = params or SocialForceParams()
         self.numerics = numerics or SFMNumerics()
         p, nm = self.params, self.numerics
@@ -273,7 +279,8 @@ class Simulation:
 
     def _set_entrances(self, x: np.ndarray) -> None:
         """The waiting lines of the entrances and their free spots (a lattice of the start
-        area one body diameter plus ENTRANCE_GAP apart, at least a radius from the walls)."""
+        area one body diameter plus ENTRANCE_GAP apart, a radius plus ENTRANCE_GAP off the
+        walls)."""
         room = self.mesh.room
         if room is None:
             raise SimulationError("arrival times need the mesh's room (its start areas)")
@@ -286,7 +293,7 @@ class Simulation:
             self._pending[int(a)] = list(ids)
             area = room.start_areas[int(a)]
             rmax = float(self.rad[ids].max())
-            region = room.walkable.buffer(-(rmax + 0.01))
+            region = room.walkable.buffer(-(rmax + ENTRANCE_GAP))
             spots = area.lattice(2 * rmax + ENTRANCE_GAP, region)
             if len(spots) == 0:
                 raise SimulationError(f"entrance '{area.name}' has no room for a body of radius "
@@ -325,6 +332,11 @@ class Simulation:
                 queue.pop(0)
                 self.x[n] = spots[k]
                 self.tri[n] = stri[k]
+                if self._rng is not None:  # (|offset| < ENTRANCE_GAP: still clear of all)
+                    p = spots[k] + self._rng.uniform(-0.5, 0.5, 2) * ENTRANCE_GAP
+                    t = int(self.mesh.locate(p[None, :])[0])
+                    if t >= 0:
+                        self.x[n], self.tri[n] = p, t
                 self.rad[n], self.u0[n], self.tpre[n] = ri, self.u0_of[i], 0.0
                 self._u_eff[n] = self.u0_of[i]
                 self.toff[n] = self.toff_of[i]

@@ -95,7 +95,7 @@ class SFMRun:
                 population = draw_population(src, counts, seed=0 if seed is None else seed)
         self.population = population
         self.sim = Simulation(mesh, positions, params=self.params, numerics=self.numerics,
-                              reroute=not static_routes, population=population)
+                              reroute=not static_routes, population=population, seed=seed)
         self.mesh = mesh
         self.static_routes = static_routes
         self.sample_interval = self.numerics.sample_interval

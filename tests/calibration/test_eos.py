@@ -206,9 +206,13 @@ def test_eos_model_evacuates_with_mass_conserved(corridor, tmp_path):
 def test_eos_warns_about_other_parameters(corridor, tmp_path, capsys):
     from pedmesh.run import run_model
 
+    from pedmesh.presets import get_preset
+
     room, mesh = corridor
+    A_cal = get_preset("validated").values["A"].value  # (the default preset's calibration)
+    assert A_cal != 1500.0
     s = run_model(room, mesh, "eos", overrides={"A": 1500.0, "exit": "vacuum"}, t_end=1.0,
                   out_dir=tmp_path / "eos", quiet=True)
-    assert any("A=1500 (calibrated for 2000)" in w for w in s["warnings"])
+    assert any(f"A=1500 (calibrated for {A_cal:g})" in w for w in s["warnings"])
     assert "pedmesh: warning:" in capsys.readouterr().err
     assert s["exit_condition"] == "vacuum"
