@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -290,7 +291,7 @@ class Simulation:
         for a in np.unique(self._area[wait]):
             ids = wait[self._area[wait] == a]
             ids = ids[np.argsort(self.arrival[ids], kind="stable")]
-            self._pending[int(a)] = list(ids)
+            self._pending[int(a)] = deque(int(i) for i in ids)
             area = room.start_areas[int(a)]
             rmax = float(self.rad[ids].max())
             region = room.walkable.buffer(-(rmax + ENTRANCE_GAP))
@@ -329,7 +330,7 @@ class Simulation:
                 else:
                     k = int(np.argmin(np.hypot(*(spots - spots.mean(axis=0)).T)))
                     rho = w0
-                queue.pop(0)
+                queue.popleft()
                 self.x[n] = spots[k]
                 self.tri[n] = stri[k]
                 if self._rng is not None:  # (|offset| < ENTRANCE_GAP: still clear of all)
