@@ -354,3 +354,15 @@ def test_entrance_seeds_give_realisations_and_repeat():
     a, b = exits(1), exits(1)
     assert np.array_equal(a, b)  # same seed, same run
     assert not np.array_equal(a, exits(2))  # another seed, another realisation
+
+
+def test_desired_directions_follow_each_ones_exits():
+    # people assigned to the west exit want to go west, the others east, wherever they stand
+    room = corridor(exits={"west": 0.5, "east": 0.5})
+    run = _sfm(room, seed=2)
+    sim = run.sim
+    groups = sim.toff[:sim.n] // room.mesh(max_area=1.0).n_triangles
+    west = np.array([sim._targets[g] == ("west",) for g in groups])
+    assert 0 < west.sum() < sim.n
+    e = sim.desired_directions()
+    assert np.all(e[west, 0] < -0.5) and np.all(e[~west, 0] > 0.5)

@@ -522,7 +522,8 @@ class Simulation:
         return self.n == 0 and self.n_waiting == 0
 
     def desired_directions(self) -> np.ndarray:
-        """(n, 2) current desired directions of the pedestrians still inside."""
+        """(n, 2) current desired directions of the pedestrians still inside (each towards
+        their own exits)."""
         from ..eikonal.direction import _interpolate
 
         out = np.zeros((self.n, 2))
@@ -530,5 +531,6 @@ class Simulation:
             c = self._const_u / max(np.hypot(*self._const_u), 1e-300)
             out[:] = c
             return out
-        _interpolate(self._dpack, self.tri[: self.n], self.x[: self.n], out)
+        n = self.n  # (each route group's rows: triangle + the group's offset)
+        _interpolate(self._dpack, self.tri[:n] + self.toff[:n], self.x[:n], out)
         return out
