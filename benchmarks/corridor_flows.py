@@ -56,9 +56,11 @@ WAITING_DENSITIES = (1.0, 3.0)  # [1/m^2]
 WAITING_RUNS = ("uo-070-180-180", "uo-100-180-180", "uo-180-180-180")
 
 
-def exit_flow(room, geometry: str | None, out: Path, *, preset: str, seed: int | None = None,
-              static_routes: bool = False, overrides: dict | None = None) -> float:
-    """The exit flow J [1/s] of one SFM run of ``room``, measured as the experiment's."""
+def measured_run(room, geometry: str | None, out: Path, *, preset: str,
+                 seed: int | None = None, static_routes: bool = False,
+                 overrides: dict | None = None, fd_frames: str = "steady") -> dict:
+    """One SFM run of ``room``, measured as the experiment's (:func:`pedmesh.validation.measure`
+    with ``fd_frames``; the flows do not depend on it)."""
     options: dict = {"seed": seed} if seed is not None else {}
     if static_routes:
         options["static_routes"] = True
@@ -66,8 +68,19 @@ def exit_flow(room, geometry: str | None, out: Path, *, preset: str, seed: int |
                   overrides=overrides)
     if s["error"] is not None:
         raise SystemExit(f"{room.name}: {s['error']}")
-    return float(V.measure(V.load_run(out), V.corridor_setup(room.walkable),
-                           fd_frames="steady")["flow"]["exit"])
+    return V.measure(V.load_run(out), V.corridor_setup(room.walkable), fd_frames=fd_frames)
+
+
+def exit_flow(room, geometry: str | None, out: Path, **kw) -> float:
+    """The exit flow J [1/s] of one SFM run of ``room`` (:func:`measured_run`)."""
+    return float(measured_run(room, geometry, out, **kw)["flow"]["exit"])
+
+
+def spread_line(name: str, ref: float, j: np.ndarray) -> str:
+    """A run's exit flows over seeds against the experiment's ``ref`` [1/s]."""
+    return (f"   {name}: experiment {ref:.2f}; simulation {j.mean():.2f} "
+            f"(seeds {j.min():.2f}-{j.max():.2f}), {j.mean() / ref - 1:+.0%} "
+            f"({j.min() / ref - 1:+.0%} to {j.max() / ref - 1:+.0%})")
 
 
 def closest_approach(run_dir: Path) -> float:
@@ -125,10 +138,7 @@ def main(argv: list[str] | None = None) -> int:
             room = load_room(path)
             sims[name] = [exit_flow(room, str(path), tmp / f"{name}-s{s}", preset=args.preset,
                                     seed=s) for s in range(1, args.seeds + 1)]
-            j = np.array(sims[name])
-            print(f"   {name}: experiment {ref[name]:.2f}; simulation {j.mean():.2f} "
-                  f"(seeds {j.min():.2f}-{j.max():.2f}), {j.mean() / ref[name] - 1:+.0%} "
-                  f"({j.min() / ref[name] - 1:+.0%} to {j.max() / ref[name] - 1:+.0%})")
+            print(spread_line(name, ref[name], np.array(sims[name])))
         print("2. waiting area packed at 1 and 3 /m^2 (shipped: about 1.7), seed 1")
         for name in WAITING_RUNS:
             cells = []
@@ -167,16 +177,12 @@ def main(argv: list[str] | None = None) -> int:
                                  V.load_experiment(Path(data_dir) / "data" / f"{name}.txt"))
             j = []
             for s in range(1, args.seeds + 1):
-                out = tmp / f"{name}-replay-s{s}"
-                j.append(exit_flow(room, None, out, preset=args.preset, seed=s))
-                m = V.measure(V.load_run(out), V.corridor_setup(room.walkable),
-                              fd_frames="all")
+                m = measured_run(room, None, tmp / f"{name}-replay-s{s}", preset=args.preset,
+                                 seed=s, fd_frames="all")
+                j.append(float(m["flow"]["exit"]))
                 fd[s][0].append(m["fd_density"])
                 fd[s][1].append(m["fd_speed"])
-            j = np.array(j)
-            print(f"   {name}: experiment {ref[name]:.2f}; simulation {j.mean():.2f} "
-                  f"(seeds {j.min():.2f}-{j.max():.2f}), {j.mean() / ref[name] - 1:+.0%} "
-                  f"({j.min() / ref[name] - 1:+.0%} to {j.max() / ref[name] - 1:+.0%})")
+            print(spread_line(name, ref[name], np.array(j)))
         exp_fd = V.bin_fd(np.concatenate([e["fd_density"] for e in exps.values()]),
                           np.concatenate([e["fd_speed"] for e in exps.values()]),
                           B.FD_DENSITIES, B.FD_HALF_WIDTH)

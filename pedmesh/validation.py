@@ -240,7 +240,16 @@ def passage_times(traj, line: Sequence[Sequence[float]]) -> np.ndarray:
     """Sorted times [s] at which each pedestrian first crosses ``line`` (two or more points
     [m]): PedPy's crossing frame (the frame a movement across the line starts, a movement
     ending on the line not counted) divided by the frame rate."""
-    return crossings(traj, line)[0]
+    frames = _crossing_frames(traj, line)[_pedpy().FRAME_COL].to_numpy(dtype=float)
+    return np.sort(frames) / traj.frame_rate
+
+
+def _crossing_frames(traj, line: Sequence[Sequence[float]]):
+    """PedPy's table of each pedestrian's crossing frame of ``line`` (id, frame)."""
+    pedpy = _pedpy()
+    _, crossing = pedpy.compute_n_t(traj_data=traj,
+                                    measurement_line=pedpy.MeasurementLine(list(line)))
+    return crossing
 
 
 def crossings(traj, line: Sequence[Sequence[float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -248,8 +257,7 @@ def crossings(traj, line: Sequence[Sequence[float]]) -> tuple[np.ndarray, np.nda
     :func:`passage_times`, sorted) and the positions (n, 2) [m] at those frames, in the
     same order."""
     pedpy = _pedpy()
-    _, crossing = pedpy.compute_n_t(traj_data=traj,
-                                    measurement_line=pedpy.MeasurementLine(list(line)))
+    crossing = _crossing_frames(traj, line)
     at = crossing[[pedpy.ID_COL, pedpy.FRAME_COL]].merge(
         traj.data[[pedpy.ID_COL, pedpy.FRAME_COL, pedpy.X_COL, pedpy.Y_COL]],
         on=[pedpy.ID_COL, pedpy.FRAME_COL], how="left")

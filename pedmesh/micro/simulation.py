@@ -287,7 +287,7 @@ class Simulation:
             raise SimulationError("arrival times need the mesh's room (its start areas)")
         wait = np.flatnonzero(np.isfinite(self.arrival))
         self._pending = {}  # area -> ids in the order of arrival
-        self._spots = {}  # area -> (spots (k, 2) [m], their triangles)
+        self._spots = {}  # area -> (spots (k, 2) [m], their triangles, box corners [m])
         for a in np.unique(self._area[wait]):
             ids = wait[self._area[wait] == a]
             ids = ids[np.argsort(self.arrival[ids], kind="stable")]
@@ -301,7 +301,10 @@ class Simulation:
                                       f"{rmax:g} m away from the walls")
             tri = self.mesh.locate(spots)
             keep = tri >= 0
-            self._spots[int(a)] = (spots[keep], tri[keep])
+            spots = spots[keep]
+            # (who can be in the way: everyone within 3 m of the spots' bounding box)
+            self._spots[int(a)] = (spots, tri[keep], spots.min(axis=0) - 3.0,
+                                   spots.max(axis=0) + 3.0)
         self.n_waiting = len(wait)
 
     def _admit(self) -> None:
@@ -311,12 +314,11 @@ class Simulation:
         R = self.params.R
         w0 = 1.0 / (math.pi * R * R)
         for a, queue in self._pending.items():
-            spots, stri = self._spots[a]
+            spots, stri, lo, hi = self._spots[a]
             while queue and self.arrival[queue[0]] <= self.t + 1e-9:
                 i = queue[0]
                 n = self.n
                 ri = self.rad_of[i]
-                lo, hi = spots.min(axis=0) - 3.0, spots.max(axis=0) + 3.0
                 xs = self.x[:n]
                 near = np.flatnonzero(np.all((xs >= lo) & (xs <= hi), axis=1))
                 if len(near):
@@ -344,19 +346,21 @@ class Simulation:
                 self.ids[n] = i
                 self.rho[n] = rho
                 self.n = n + 1
-                e = self._direction(n)
+                e = self._directions(n, n + 1)[0]
                 self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
                 self.n_waiting -= 1
 
-    def _direction(self, k: int) -> np.ndarray:
-        """The desired direction (2,) of row ``k``."""
+    def _directions(self, lo: int, hi: int) -> np.ndarray:
+        """(hi - lo, 2) desired directions of rows ``lo:hi`` (each towards their own exits:
+        a route group's rows of the steering table are the triangle plus its offset)."""
+        out = np.zeros((hi - lo, 2))
         if self._use_const:
-            return self._const_u / max(float(np.hypot(*self._const_u)), 1e-300)
+            out[:] = self._const_u / max(float(np.hypot(*self._const_u)), 1e-300)
+            return out
         from ..eikonal.direction import _interpolate
 
-        out = np.zeros((1, 2))
-        _interpolate(self._dpack, self.tri[k:k + 1] + self.toff[k], self.x[k:k + 1], out)
-        return out[0]
+        _interpolate(self._dpack, self.tri[lo:hi] + self.toff[lo:hi], self.x[lo:hi], out)
+        return out
 
     def _build_cells(self) -> None:
         from . import _kernels as K
@@ -524,13 +528,4 @@ class Simulation:
     def desired_directions(self) -> np.ndarray:
         """(n, 2) current desired directions of the pedestrians still inside (each towards
         their own exits)."""
-        from ..eikonal.direction import _interpolate
-
-        out = np.zeros((self.n, 2))
-        if self._use_const:
-            c = self._const_u / max(np.hypot(*self._const_u), 1e-300)
-            out[:] = c
-            return out
-        n = self.n  # (each route group's rows: triangle + the group's offset)
-        _interpolate(self._dpack, self.tri[:n] + self.toff[:n], self.x[:n], out)
-        return out
+        return self._directions(0, self.n)
