@@ -207,13 +207,33 @@ def _rel(sim: float, ref: float) -> float:
     return sim / ref - 1.0
 
 
+def _seed_options(seed: int | None) -> dict[str, Any]:
+    """The run options of one realisation (none for ``seed`` None: the unjittered run)."""
+    return {} if seed is None else {"seed": int(seed)}
+
+
+def _seed_dir(runs_dir: Path, name: str, seed: int | None, seeds: tuple) -> Path:
+    """A run's directory: ``runs_dir/name``, or ``runs_dir/name/s<seed>`` with several."""
+    return runs_dir / name if len(seeds) == 1 else runs_dir / name / f"s{seed}"
+
+
+def _mean(values: Iterable[float]) -> float:
+    """The mean of the finite values (nan if there are none)."""
+    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    return float(np.mean(v)) if v else math.nan
+
+
 def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None,
                   t_end: float = 600.0, trajectory_rate: float = 10.0,
                   fd_frames: str = "steady", entrance: str = "door",
-                  log=print) -> dict[str, Any]:
+                  seeds: Iterable[int | None] = (None,), log=print) -> dict[str, Any]:
     """Simulate and measure the five corridor runs; rows and the pooled FD. ``entrance``:
     ``door`` (the rooms of ``geometries/experiments/``: a waiting crowd and the entrance
-    door) or ``replay`` (:func:`replay_room`: the experiment's inflow)."""
+    door) or ``replay`` (:func:`replay_room`: the experiment's inflow). ``seeds``: the
+    realisations of each run (None: the unjittered one); a row holds the mean of its
+    realisations' values (over those that ran) and the FD pools every realisation's
+    samples."""
+    seeds = tuple(seeds)
     if entrance not in ENTRANCES:
         raise ValueError(f"unknown entrance {entrance!r} (entrances: {', '.join(ENTRANCES)})")
     experiments = measure_experiments(str(data_dir), fd_frames)
@@ -221,6 +241,7 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
         raise SystemExit(f"no experiment files in {data_dir / 'data'} "
                          "(--data DIR or PEDMESH_EXPERIMENTS)")
     rows, sim_fd, exp_fd = [], ([], []), ([], [])
+    by_seed: dict[Any, tuple[list, list]] = {}
     for name, exp in experiments.items():
         path = ROOMS / f"{name}.json"
         room = load_room(path)
@@ -228,24 +249,38 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
         if entrance == "replay":
             room = replay_room(room, V.load_experiment(Path(data_dir) / "data" / f"{name}.txt"))
             geometry = None
-        s = run_sfm(room, runs_dir / name, overrides=overrides, preset=preset, t_end=t_end,
-                    trajectory_rate=trajectory_rate, geometry=geometry)
-        row: dict[str, Any] = {"run": name, "status": s.get("status"), "error": s["error"],
-                               "wall_s": s["wall_s"], "n_initial": s.get("n_initial"),
-                               "n_evacuated": s.get("n_evacuated")}
-        sim = None
-        if s["error"] is None:
-            sim = V.measure(V.load_run(runs_dir / name), V.corridor_setup(room.walkable),
-                            fd_frames=fd_frames)
+        sims, summaries = [], []
+        for seed in seeds:
+            out = _seed_dir(runs_dir, name, seed, seeds)
+            s = run_sfm(room, out, overrides=overrides, preset=preset, t_end=t_end,
+                        trajectory_rate=trajectory_rate, geometry=geometry,
+                        model_options=_seed_options(seed))
+            summaries.append(s)
+            if s["error"] is None:
+                sim = V.measure(V.load_run(out), V.corridor_setup(room.walkable),
+                                fd_frames=fd_frames)
+                sims.append(sim)
+                sim_fd[0].append(sim["fd_density"])
+                sim_fd[1].append(sim["fd_speed"])
+                by_seed.setdefault(seed, ([], []))
+                by_seed[seed][0].append(sim["fd_density"])
+                by_seed[seed][1].append(sim["fd_speed"])
+        bad = [s for s in summaries if s["error"] is not None or s.get("status") != "finished"]
+        first = bad[0] if bad else summaries[0]
+        row: dict[str, Any] = {"run": name, "status": first.get("status"),
+                               "error": first["error"],
+                               "wall_s": float(sum(s["wall_s"] for s in summaries)),
+                               "n_initial": first.get("n_initial"),
+                               "n_evacuated": first.get("n_evacuated"),
+                               "realisations": len(seeds)}
         for key, get in (("J_exit", lambda m: m["flow"]["exit"]),
                          ("J_y0", lambda m: m["flow"]["y0"]),
                          ("density", lambda m: m["density"]), ("speed", lambda m: m["speed"])):
             row[f"{key}_exp"] = get(exp)
-            row[f"{key}_sim"] = get(sim) if sim is not None else math.nan
+            row[f"{key}_sim"] = _mean(get(m) for m in sims)
             row[f"{key}_err"] = _rel(row[f"{key}_sim"], row[f"{key}_exp"])
-        if sim is not None:
-            sim_fd[0].append(sim["fd_density"])
-            sim_fd[1].append(sim["fd_speed"])
+            if len(seeds) > 1:
+                row[f"{key}_sims"] = [float(get(m)) for m in sims]
         exp_fd[0].append(exp["fd_density"])
         exp_fd[1].append(exp["fd_speed"])
         rows.append(row)
@@ -259,31 +294,43 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
                         FD_HALF_WIDTH)
 
     fd = []
-    for s_bin, e_bin in zip(pooled(sim_fd), pooled(exp_fd)):
+    per_seed = [pooled(by_seed[seed]) for seed in seeds if seed in by_seed]
+    for k, (s_bin, e_bin) in enumerate(zip(pooled(sim_fd), pooled(exp_fd))):
         rho = s_bin["density"]
         fd.append({"density": rho, "speed_sim": s_bin["speed"], "n_sim": s_bin["n"],
                    "speed_exp": e_bin["speed"], "n_exp": e_bin["n"],
                    "speed_weidmann": V.weidmann_speed(rho)})
-    return {"rows": rows, "fd": fd, "fd_frames": fd_frames}
+        if len(seeds) > 1:  # each realisation's own pooled FD
+            fd[-1]["speed_sims"] = [b[k]["speed"] for b in per_seed]
+    return {"rows": rows, "fd": fd, "fd_frames": fd_frames, "seeds": list(seeds)}
 
 
 def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
                     trajectory_rate: float = 10.0, widths: Iterable[float] = BOTTLENECK_WIDTHS,
-                    log=print) -> list[dict[str, Any]]:
-    """Specific flow J/b [1/(m s)] through bottlenecks of the given widths [m]."""
+                    seeds: Iterable[int | None] = (None,), log=print) -> list[dict[str, Any]]:
+    """Specific flow J/b [1/(m s)] through bottlenecks of the given widths [m] (the mean
+    over the realisations ``seeds``)."""
     rows = []
+    seeds = tuple(seeds)
     for b in widths:
         room = bottleneck_room(b)
-        out = runs_dir / f"b{b:g}"
-        s = run_sfm(room, out, overrides=overrides, preset=preset, t_end=t_end,
-                    trajectory_rate=trajectory_rate)
-        flow = math.nan
-        if s["error"] is None:
-            times = V.passage_times(V.load_run(out), room.measurement_lines[0].polyline)
-            flow = V.quantile_flow(times)
+        flows, summaries = [], []
+        for seed in seeds:
+            out = _seed_dir(runs_dir, f"b{b:g}", seed, seeds)
+            s = run_sfm(room, out, overrides=overrides, preset=preset, t_end=t_end,
+                        trajectory_rate=trajectory_rate, model_options=_seed_options(seed))
+            summaries.append(s)
+            if s["error"] is None:
+                times = V.passage_times(V.load_run(out), room.measurement_lines[0].polyline)
+                flows.append(V.quantile_flow(times))
+        bad = [s for s in summaries if s["error"] is not None or s.get("status") != "finished"]
+        s = bad[0] if bad else summaries[0]
+        flow = _mean(flows)
         row = {"width_m": b, "J": flow, "J_per_b": flow / b, "status": s.get("status"),
-               "error": s["error"], "wall_s": s["wall_s"],
+               "error": s["error"], "wall_s": float(sum(x["wall_s"] for x in summaries)),
                "err": _rel(flow / b, V.SPECIFIC_BOTTLENECK_FLOW_PER_MS)}
+        if len(seeds) > 1:
+            row["J_per_b_sims"] = [f / b for f in flows]
         rows.append(row)
         log(f"  bottleneck b = {b:g} m: {row['status']}, {row['wall_s']:.1f} s wall"
             + (f" ({row['error']})" if row["error"] else ""))
@@ -291,11 +338,14 @@ def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float
 
 
 def free_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
-              trajectory_rate: float = 10.0, log=print) -> dict[str, Any]:
-    """Mean speed [m/s] of free walkers."""
+              trajectory_rate: float = 10.0, seeds: Iterable[int | None] = (None,),
+              log=print) -> dict[str, Any]:
+    """Mean speed [m/s] of free walkers (one run: three lone walkers have no realisations
+    that differ, so only the first of ``seeds`` is used)."""
     out = runs_dir / "free"
     s = run_sfm(free_room(), out, overrides=overrides, preset=preset, t_end=t_end,
-                trajectory_rate=trajectory_rate)
+                trajectory_rate=trajectory_rate,
+                model_options=_seed_options(tuple(seeds)[0]))
     speed, n = math.nan, 0
     if s["error"] is None:
         speed, n = V.mean_speed_in_area(V.load_run(out), FREE_AREA)
@@ -339,11 +389,18 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
                    parts: Iterable[str] = ("corridor",), data_dir: str | Path | None = None,
                    out_dir: str | Path | None = None, t_end: float = 600.0,
                    trajectory_rate: float = 10.0, fd_frames: str = "all",
-                   entrance: str = "door", log=print) -> dict[str, Any]:
+                   entrance: str = "door", seeds: Iterable[int | None] = (None,),
+                   log=print) -> dict[str, Any]:
     """Run the ``parts`` (``corridor``, ``bottleneck``, ``free``) with parameter
     ``overrides`` on top of ``preset``; every number, the errors (:func:`errors_of`) and
-    the wall time [s]. The runs go to ``out_dir/runs`` (a temporary directory if None)."""
+    the wall time [s]. The runs go to ``out_dir/runs`` (a temporary directory if None).
+    ``seeds``: the realisations of every corridor and bottleneck run (None: the
+    unjittered lattice and entrance spots); the values are their means, the FD their
+    pooled samples."""
     parts = tuple(parts)
+    seeds = tuple(seeds)
+    if not seeds:
+        raise ValueError("seeds must name at least one realisation")
     unknown = set(parts) - set(PARTS)
     if unknown:
         raise ValueError(f"unknown parts {sorted(unknown)} (parts: {', '.join(PARTS)})")
@@ -352,11 +409,11 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
     with tempfile.TemporaryDirectory(prefix="pedmesh-validation-") as tmp:
         runs = Path(out_dir) / "runs" if out_dir is not None else Path(tmp)
         kw = {"overrides": dict(overrides or {}), "preset": preset, "t_end": t_end,
-              "trajectory_rate": trajectory_rate, "log": log}
+              "trajectory_rate": trajectory_rate, "seeds": seeds, "log": log}
         results: dict[str, Any] = {
             "preset": preset, "overrides": dict(overrides or {}), "data_dir": str(data_dir),
             "t_end_s": t_end, "trajectory_rate_hz": trajectory_rate, "parts": list(parts),
-            "entrance": entrance}
+            "entrance": entrance, "seeds": list(seeds)}
         if "corridor" in parts:
             results["corridor"] = corridor_part(data_dir, runs / "corridor",
                                                 fd_frames=fd_frames, entrance=entrance, **kw)
@@ -393,23 +450,40 @@ def tables(results: Mapping[str, Any]) -> list[tuple[str, list[str], list[list[s
     if corridor:
         head = ["run", "J exit sim", "J exit exp", "err", "J y0 sim", "J y0 exp", "err",
                 "rho sim", "rho exp", "v sim", "v exp", "wall [s]"]
+        many = len(corridor.get("seeds", [None])) > 1
         rows = [[r["run"], _f(r["J_exit_sim"]), _f(r["J_exit_exp"]), _pct(r["J_exit_err"]),
                  _f(r["J_y0_sim"]), _f(r["J_y0_exp"]), _pct(r["J_y0_err"]),
                  _f(r["density_sim"]), _f(r["density_exp"]), _f(r["speed_sim"]),
                  _f(r["speed_exp"]), _f(r["wall_s"], ".1f")] for r in corridor["rows"]]
+        if many:
+            head.insert(4, "err per realisation")
+            for row, r in zip(rows, corridor["rows"]):
+                row.insert(4, " ".join(_pct(_rel(v, r["J_exit_exp"]))
+                                       for v in r["J_exit_sims"]))
+        seeds_txt = (f"; mean of realisations {', '.join(map(str, corridor['seeds']))}"
+                     if many else "")
         out.append((("Corridor: flow J [1/s], steady-state Voronoi density [1/m^2] and "
-                     "speed [m/s] in (0,-2)-(1.8,0)"), head, rows))
-        head = ["rho [1/m^2]", "v sim", "n sim", "v exp", "n exp", "v Weidmann"]
+                     f"speed [m/s] in (0,-2)-(1.8,0){seeds_txt}"), head, rows))
+        head = ["rho [1/m^2]", "v sim", "n sim", "v exp", "n exp", "err", "v Weidmann"]
         rows = [[f"{b['density']:g} +- {FD_HALF_WIDTH:g}", _f(b["speed_sim"]), str(b["n_sim"]),
-                 _f(b["speed_exp"]), str(b["n_exp"]), _f(b["speed_weidmann"])]
+                 _f(b["speed_exp"]), str(b["n_exp"]), _pct(_rel(b["speed_sim"], b["speed_exp"])),
+                 _f(b["speed_weidmann"])]
                 for b in corridor["fd"]]
-        out.append((f"Pooled Voronoi speed [m/s] by density ({corridor['fd_frames']} frames)",
-                    head, rows))
+        if many:
+            head.insert(6, "err per realisation")
+            for row, b in zip(rows, corridor["fd"]):
+                row.insert(6, " ".join(_pct(_rel(v, b["speed_exp"])) for v in b["speed_sims"]))
+        out.append((f"Pooled Voronoi speed [m/s] by density ({corridor['fd_frames']} frames"
+                    f"{seeds_txt})", head, rows))
     if results.get("bottleneck"):
         head = ["b [m]", "J [1/s]", "J/b sim [1/(m s)]", "J/b ref", "err", "wall [s]"]
         rows = [[f"{r['width_m']:g}", _f(r["J"]), _f(r["J_per_b"]),
                  _f(V.SPECIFIC_BOTTLENECK_FLOW_PER_MS), _pct(r["err"]), _f(r["wall_s"], ".1f")]
                 for r in results["bottleneck"]]
+        if any("J_per_b_sims" in r for r in results["bottleneck"]):
+            head.insert(3, "J/b per realisation")
+            for row, r in zip(rows, results["bottleneck"]):
+                row.insert(3, " ".join(_f(v) for v in r.get("J_per_b_sims", [])))
         out.append(("Bottleneck: specific flow", head, rows))
     free = results.get("free")
     if free:
@@ -487,7 +561,17 @@ def main(argv: list[str] | None = None) -> int:
                     help="the corridor runs' entrance: 'door' (default: the waiting crowd "
                          "and the entrance door of geometries/experiments/) or 'replay' "
                          "(the experiment's measured inflow at y = 7.5 m)")
+    ap.add_argument("--seeds", default=None, metavar="S1,S2,...",
+                    help="realisations of every corridor and bottleneck run (seeds of the "
+                         "start lattice and entrance spots), reported as their mean and "
+                         "spread (default: the one unjittered run)")
     args = ap.parse_args(argv)
+    seeds: tuple = (None,)
+    if args.seeds:
+        try:
+            seeds = tuple(int(v) for v in args.seeds.split(","))
+        except ValueError:
+            ap.error(f"--seeds takes integers separated by commas, got {args.seeds!r}")
     parts = [] if args.only_extra else ["corridor"]
     parts += [p for p, on in (("bottleneck", args.bottleneck), ("free", args.free)) if on]
     if not parts:
@@ -496,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
     results = run_validation(parse_param_overrides(args.param), args.preset, parts=parts,
                              data_dir=args.data, out_dir=args.out, t_end=args.t_end,
                              trajectory_rate=args.trajectory_rate, fd_frames=args.fd_frames,
-                             entrance=args.entrance)
+                             entrance=args.entrance, seeds=seeds)
     print(f"\nSFM validation: preset {args.preset or 'default'}, overrides "
           f"{results['overrides'] or 'none'}")
     for title, head, rows in tables(results):

@@ -51,16 +51,21 @@ class Value:
 
 @dataclass(frozen=True)
 class Preset:
-    """A named parameter set (see the module docstring)."""
+    """A named parameter set (see the module docstring). ``continuum``: values the
+    continuum models take instead of those of ``values`` (e.g. their own desired-speed
+    law: the social force model's measured fundamental diagram)."""
 
     name: str
     description: str
     values: dict[str, Value] = field(default_factory=dict)
+    continuum: dict[str, Value] = field(default_factory=dict)
 
-    def overrides(self, accepted: set[str] | None = None) -> dict[str, float | str]:
-        """The values as ``--param`` overrides, only those in ``accepted`` (if given)."""
-        return {k: v.value for k, v in self.values.items()
-                if accepted is None or k in accepted}
+    def overrides(self, accepted: set[str] | None = None, *,
+                  continuum: bool = False) -> dict[str, float | str]:
+        """The values as ``--param`` overrides, only those in ``accepted`` (if given);
+        with ``continuum``, a continuum model's (:attr:`continuum` over :attr:`values`)."""
+        values = {**self.values, **self.continuum} if continuum else self.values
+        return {k: v.value for k, v in values.items() if accepted is None or k in accepted}
 
 
 _PAPER_VALUES = {
@@ -81,7 +86,7 @@ _PAPER_VALUES = {
 UNITS = {"speed_law": "", "U_f": "m/s", "beta": "m^2/ped", "rho_jam": "ped/m^2",
          "gamma_w": "ped/m^2", "rho_shift": "ped/m^2", "density_self": "0/1", "tau": "s",
          "m": "kg", "r": "m", "R": "m", "A": "N", "B": "m", "k": "kg/s^2",
-         "kappa": "kg/(m s)", "calibration": ""}
+         "kappa": "kg/(m s)", "calibration": "", "speed_table": "ped/m^2 : -"}
 DATA = Path(__file__).resolve().parent / "data"
 FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
        "(benchmarks/fit_validated.py -> pedmesh/data/validated.json)")
@@ -103,6 +108,11 @@ def _validated() -> "Preset | None":
             continue
         if k in fitted:
             src = FIT
+        elif k in fit.get("carried", {}):
+            src = ("fitted with Weidmann's law to the same data (benchmarks/fit_validated.py "
+                   "--law weidmann), kept when the law was fitted as a table")
+        elif k == "speed_law" and v == "table":
+            src = "pedmesh: U_e = U_f g(rho), g piecewise linear through speed_table's points"
         elif k == "U_f":
             src = WEIDMANN + "; free walking speed 1.34 m/s"
         elif k == "density_self":
@@ -112,9 +122,22 @@ def _validated() -> "Preset | None":
         else:
             src = values[k].source if k in values else FIT
         values[k] = Value(v, UNITS.get(k, ""), src)
+    continuum: dict[str, Value] = {}
+    fd = DATA / "fd_validated.json"
+    if fit["parameters"].get("speed_law") == "table":
+        # the social force model's law is a table in its kernel density; the continuum
+        # models take its fundamental diagram, measured, as theirs
+        values["speed_table"] = Value(
+            fit["parameters"]["speed_table"], "ped/m^2 : -",
+            FIT + "; U_e/U_f at the kernel density without one's own share")
+        if fd.is_file():
+            continuum["speed_table"] = Value(
+                json.loads(fd.read_text())["speed_table"], "ped/m^2 : -",
+                "the validated SFM's fundamental diagram (speed/U_f at the crowd's density), "
+                "measured by benchmarks/continuum_law.py -> pedmesh/data/fd_validated.json")
     # the continuum models: the same law, shifted by the kernel share the social force model
     # leaves out, so that both have one fundamental diagram
-    if not fit["parameters"].get("density_self", 1):
+    elif not fit["parameters"].get("density_self", 1):
         R = float(fit["parameters"].get("R", _PAPER_VALUES["R"].value))
         values["rho_shift"] = Value(round(1.0 / (math.pi * R * R), 6), "ped/m^2",
                                     "1/(pi R^2): the continuum models' law at rho - 1/(pi R^2),"
@@ -125,7 +148,7 @@ def _validated() -> "Preset | None":
                                                     "(the eos model's equation of state)")
     return Preset("validated", "fitted to real crowds (Juelich corridor experiments, "
                                "bottleneck flows, free walking speed); see "
-                               "docs/validation/", values)
+                               "docs/validation/", values, continuum)
 
 
 PRESETS: dict[str, Preset] = {
@@ -166,10 +189,13 @@ def resolve_preset(explicit: str | None, room: Any = None) -> str:
 
 
 def preset_overrides(name: str, accepted: set[str] | frozenset[str],
-                     overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+                     overrides: dict[str, Any] | None = None, *,
+                     model: str | None = None) -> dict[str, Any]:
     """The parameters of a model with the parameters ``accepted`` (e.g.
     :func:`pedmesh.run.models.model_parameters`) under preset ``name``: the preset's values
-    for those, then ``overrides`` on top."""
-    out = get_preset(name).overrides(set(accepted))
+    for those, then ``overrides`` on top. ``model``: the model's name; any but ``sfm``
+    takes the preset's continuum values (:attr:`Preset.continuum`)."""
+    continuum = model is not None and model != "sfm"
+    out = get_preset(name).overrides(set(accepted), continuum=continuum)
     out.update(overrides or {})
     return out

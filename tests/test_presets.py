@@ -149,3 +149,26 @@ def test_validated_is_the_fit_and_the_default():
     for k, v in cal["parameters"].items():
         if k in pre.values:
             assert v == pytest.approx(pre.values[k].value), k
+
+
+def test_continuum_values_reach_only_the_continuum_models(monkeypatch):
+    """A preset's continuum values (e.g. the continuum models' own speed table) replace
+    its values for every model but the SFM, and --param overrides still win."""
+    from pedmesh import presets
+    from pedmesh.presets import Preset, Value
+    from pedmesh.run.models import model_parameters as mp
+
+    pre = Preset("two", "test", {"speed_law": Value("table", "", "s"),
+                                 "speed_table": Value("0:1 1:0.5", "", "sfm's"),
+                                 "r": Value(0.2, "m", "s")},
+                 {"speed_table": Value("0:1 2:0.5", "", "continuum's")})
+    monkeypatch.setitem(presets.PRESETS, "two", pre)
+    sfm = preset_overrides("two", mp("sfm"), model="sfm")
+    assert sfm["speed_table"] == "0:1 1:0.5" and sfm["r"] == 0.2
+    for model in ("eos", "rdue", "pw", "mac1"):
+        p = preset_overrides("two", mp(model), model=model)
+        assert p["speed_table"] == "0:1 2:0.5" and p["speed_law"] == "table"
+        assert ("r" in p) == (model in ("eos", "mac1"))  # (those two derive from the SFM)
+    assert preset_overrides("two", mp("eos"), {"speed_table": "0:1 3:0"},
+                            model="eos")["speed_table"] == "0:1 3:0"
+    assert pre.overrides()["speed_table"] == "0:1 1:0.5"  # (without a model: the values)

@@ -160,3 +160,107 @@ def test_the_shifted_law_is_the_validated_sfms_diagram():
     rho = np.linspace(0.0, 6.0, 61)
     assert np.allclose(law(rho), sfm(np.maximum(rho - w0, 0.0)), rtol=1e-6)
     assert law.capacity > 1.4 * sfm.capacity  # (the shift raises the capacity)
+
+
+TABLE = "0:1 0.3:0.95 0.6:0.8 1.5:0.6 2.7:0.3 5.6:0"
+
+
+@pytest.mark.parametrize("law", [SpeedLaw("table", U_f=1.34, table=TABLE),
+                                 SpeedLaw("table", U_f=1.2, table=TABLE, shift=0.65),
+                                 SpeedLaw("table", U_f=1.34, table=[(0, 1), (2, 0.5)])])
+def test_table_kernels_match_the_interpolation(law):
+    """The compiled table law is numpy's piecewise-linear interpolation (constant beyond
+    the last point), its flow rho U_e and |d(rho U_e)/d rho| between the points."""
+    a = law.array
+    rho = np.concatenate([[0.0, 1e-9], np.linspace(0.01, 8.0, 211)])
+    x, g = np.asarray(law.table, float).T
+    want = np.interp(np.maximum(rho - law.shift, 0.0), x, g)
+    got = np.array([shape(a, r) for r in rho])
+    assert np.allclose(got, want, rtol=1e-14, atol=1e-15)
+    assert np.allclose(law.shape(rho), want, rtol=1e-14, atol=1e-15)
+    fd = np.array([flux_and_slope(a, law.U_f, r) for r in rho])
+    assert np.allclose(fd[:, 0], law.U_f * rho * want, rtol=1e-13, atol=1e-15)
+    h = 1e-7
+    knots = law.shift + x
+    inner = (np.min(np.abs(rho[:, None] - knots[None, :]), axis=1) > 1e-4) & (rho > 1e-3)
+    num = (law.flow(rho + h) - law.flow(rho - h)) / (2 * h)
+    assert np.allclose(fd[inner, 1], np.abs(num[inner]), rtol=1e-5, atol=1e-7)
+
+
+def test_table_law_text_and_properties():
+    law = SpeedLaw("table", U_f=1.34, table=TABLE)
+    assert law.table[0] == (0.0, 1.0) and law.table[-1] == (5.6, 0.0)
+    assert law.jam_density == 5.6
+    assert SpeedLaw("table", table=[(0, 1), (2, 0.5)]).jam_density == math.inf
+    # the capacity is the largest rho U_e, on a grid as well as by the optimizer
+    rho = np.linspace(0.0, 5.6, 56001)
+    assert law.capacity == pytest.approx(float(np.max(law.flow(rho))), rel=1e-6)
+    p = law.parameters()
+    assert p["speed_law"] == "table"
+    again = SpeedLaw("table", U_f=1.34, table=p["speed_table"])
+    assert again.table == law.table
+
+
+@pytest.mark.parametrize("table, match", [
+    ("", "speed law 'table' needs its points"),
+    ("0:1 1:x", "must be points rho:g"),
+    ("0:1 1", "two finite numbers"),
+    ("0.1:1 1:0.5", "must start at 0:1"),
+    ("0:1 2:0.5 1:0.4", "densities must increase, got 1 after 2"),
+    ("0:1 1:0.5 2:0.6", "g must not increase"),
+    ("0:1 1:-0.1", "g must not increase and stay in \\[0, 1\\]"),
+    ("0:1", "at least two points")])
+def test_bad_speed_tables_are_clear_errors(table, match):
+    with pytest.raises(ParameterError, match=match):
+        SpeedLaw("table", table=table)
+
+
+def test_bad_speed_table_on_the_command_line(geometries_dir, tmp_path, capsys):
+    from pedmesh.cli import main
+
+    rc = main(["run", str(geometries_dir / "l_shaped.json"), "--model", "sfm", "--param",
+               "speed_law=table", "--param", "speed_table=0:1 1:0.5 2:0.7",
+               "--out", str(tmp_path / "r"), "-q"])
+    assert rc != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("pedmesh: error:") and "g must not" in err[0]
+
+
+@pytest.mark.parametrize("model", ["sfm", "rdue", "eos"])
+def test_a_table_law_equal_to_weidmanns_gives_the_same_run(model):
+    """A table through many points of Weidmann's law runs like Weidmann's law: the same
+    people out after 4 s within a few per cent (the interpolation error is ~1e-3)."""
+    from pedmesh import Room
+    from pedmesh.run.models import MODELS
+
+    w = SpeedLaw("weidmann", U_f=1.34)
+    pts = np.concatenate([np.linspace(0.0, 1.0, 11)[:-1], np.linspace(1.0, 5.4, 89)])
+    table = " ".join(f"{r:.6g}:{float(w.shape(r)):.9g}" for r in pts)
+    room = Room(outline=[(0, 0), (12, 0), (12, 4), (0, 4)],
+                exits=[{"name": "out", "polyline": [(12, 0), (12, 4)]}],
+                start_areas=[{"name": "crowd", "polygon": [(6, 0.3), (11.7, 0.3), (11.7, 3.7),
+                                                           (6, 3.7)], "density": 3.0}])
+    mesh = room.mesh(max_area=0.5)
+    out = {}
+    for name, params in (("weidmann", {"speed_law": "weidmann", "U_f": 1.34}),
+                         ("table", {"speed_law": "table", "speed_table": table, "U_f": 1.34})):
+        run = MODELS[model](room, mesh, params)
+        assert run.parameters()["speed_law"] == name
+        while run.t < 4.0:
+            run.step(4.0)
+        out[name] = run.evacuated
+    assert out["table"] == pytest.approx(out["weidmann"], rel=0.03, abs=1.0)
+
+
+def test_rdue_with_a_table_law_piles_no_one_above_its_jam_point(load_shipped):
+    """As with Weidmann's law: a table that reaches g = 0 at 5.6 /m^2 keeps RDUE's
+    Example 3 at that density (within the reconstruction's overshoot)."""
+    from pedmesh.run.models import MODELS
+
+    room = load_shipped("example3.json")
+    run = MODELS["rdue"](room, room.mesh(), {"speed_law": "table", "speed_table": TABLE})
+    top = 0.0
+    while not run.done and run.t < 300:
+        run.step()
+        top = max(top, float(run.state.Q[:, 0].max()))
+    assert 3.0 < top <= 1.05 * 5.6

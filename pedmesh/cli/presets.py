@@ -30,6 +30,18 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", nargs="?", default=None, help="show only this preset")
 
 
+def _show(key: str, v, width: int) -> None:
+    """One value's lines: name, value, unit, source (a long text value on lines of its
+    own, e.g. a speed table)."""
+    value = v.value if isinstance(v.value, str) else f"{v.value:g}"
+    if len(value) > 11:
+        print(f"  {key:<{width}}  {'':>11} {v.unit:<9} {v.source}")
+        for k in range(0, len(value), 72):
+            print(f"  {'':<{width}}    {value[k:k + 72]}")
+        return
+    print(f"  {key:<{width}}  {value:>11} {v.unit:<9} {v.source}")
+
+
 def run(args: argparse.Namespace) -> int:
     from ..presets import DEFAULT_PRESET, PRESETS, get_preset
 
@@ -40,8 +52,11 @@ def run(args: argparse.Namespace) -> int:
         if n:
             print()
         print(f"{name}{mark}: {pre.description}")
-        width = max(len(k) for k in pre.values)
+        width = max(len(k) for k in [*pre.values, *pre.continuum])
         for key, v in pre.values.items():
-            value = v.value if isinstance(v.value, str) else f"{v.value:g}"
-            print(f"  {key:<{width}}  {value:>11} {v.unit:<9} {v.source}")
+            _show(key, v, width)
+        if pre.continuum:
+            print("  continuum models (eos, rdue, pw, mac1, mac2-*) instead:")
+            for key, v in pre.continuum.items():
+                _show(key, v, width)
     return 0

@@ -76,7 +76,7 @@ def area_densities(room, mesh) -> list[np.ndarray]:
 
 
 #: model parameters that are words, switches (0/1), positive, or >= 0 by their meaning
-_TEXT = {"calibration", "exit", "speed_law"}
+_TEXT = {"calibration", "exit", "speed_law", "speed_table"}
 _SWITCHES = {"walls", "friction", "split_friction", "imex"}
 _POSITIVE = {"U_f", "beta", "tau", "rho_cut", "u_max", "A", "B", "k", "kappa", "m", "r",
              "cutoff", "lr_strength", "lr_length", "gamma1", "rho_jam", "gamma_w"}

@@ -32,17 +32,20 @@ class SocialForceParams:
     k: float = 1.2e5  #: body (contact) force constant [kg/s^2], k
     kappa: float = 2.4e5  #: sliding friction constant [kg/(m s)], kappa
     #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`): 'exponential' (the paper's,
-    #: U_f exp(-beta rho)) or 'weidmann' (U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam))))
+    #: U_f exp(-beta rho)), 'weidmann' (U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam)))) or
+    #: 'table' (U_f g(rho), g piecewise linear through the points of ``speed_table``)
     speed_law: str = "exponential"
     rho_jam: float = 5.4  #: jam density [ped/m^2] of the Weidmann law
     gamma_w: float = 1.913  #: [ped/m^2] of the Weidmann law
+    #: the points "rho:g rho:g ..." (density [ped/m^2] : U_e/U_f) of the 'table' law
+    speed_table: str = ""
     #: 1: U_e is evaluated at the kernel density with the pedestrian's own share, as in the
     #: paper (eq3: a lone walker feels 1/(pi R^2) = 0.65 /m^2); 0: without it (a lone
     #: walker walks at U_f)
     density_self: float = 1.0
 
     def __post_init__(self) -> None:
-        _check_positive(self, skip=("speed_law", "density_self"))
+        _check_positive(self, skip=("speed_law", "density_self", "speed_table"))
         if self.density_self not in (0, 1) or isinstance(self.density_self, bool):
             raise ParameterError(f"parameter 'density_self' must be 0 or 1, got "
                                  f"{self.density_self!r}")
@@ -53,7 +56,8 @@ class SocialForceParams:
         """The desired-speed law (:class:`pedmesh.speed.SpeedLaw`)."""
         from ..speed import SpeedLaw
 
-        return SpeedLaw(self.speed_law, self.U_f, self.beta, self.rho_jam, self.gamma_w)
+        return SpeedLaw(self.speed_law, self.U_f, self.beta, self.rho_jam, self.gamma_w,
+                        table=self.speed_table)
 
     def desired_speed(self, rho):
         """U_e(rho) [m/s] (paper eq_desired_speed: U_f exp(-beta rho) with the exponential
@@ -124,7 +128,7 @@ def _check_positive(obj: Any, skip: tuple[str, ...] = ()) -> None:
 
 
 #: parameters whose values are words, not numbers
-TEXT_PARAMS = {"exit", "calibration", "speed_law"}
+TEXT_PARAMS = {"exit", "calibration", "speed_law", "speed_table"}
 #: switches: 0/1 or false/true on the command line (read as 0.0/1.0)
 BOOL_PARAMS = {"limiter", "route_every_step", "walls", "friction", "split_friction", "imex",
                "density_self"}

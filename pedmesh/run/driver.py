@@ -82,7 +82,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     # the parameters: the preset's (asked for, else the room file's, else the default) with
     # the overrides on top; the settings record the preset's name and the overrides
     preset = resolve_preset(preset, room)
-    parameters = preset_overrides(preset, model_parameters(name), overrides)
+    parameters = preset_overrides(preset, model_parameters(name), overrides, model=name)
     model_options = dict(model_options or {})
     t_wall0 = time.perf_counter()
     out = Path(out_dir)

@@ -286,7 +286,7 @@ def _register_macro(name: str, params: set[str], aliases: tuple[str, ...] = ()) 
 
 
 #: the desired-speed law (pedmesh.speed) besides U_f and beta
-SPEED_KEYS = {"speed_law", "rho_jam", "gamma_w", "rho_shift"}
+SPEED_KEYS = {"speed_law", "rho_jam", "gamma_w", "rho_shift", "speed_table"}
 _register_macro("pw", {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"} | SPEED_KEYS,
                 aliases=("payne-whitham",))
 _register_macro("rdue", {"U_f", "beta"} | SPEED_KEYS, aliases=("hughes",))

@@ -517,13 +517,14 @@ class BarotropicModel(MacroModel):
     def __init__(self, name: str, law: PressureLaw, *, U_f: float = 1.034, beta: float = 0.05,
                  tau: float = 0.5, rho_cut: float = 1e-3, u_max: float | None = None,
                  default_exit: str | None = None, speed_law: str = "exponential",
-                 rho_jam: float = 5.4, gamma_w: float = 1.913, rho_shift: float = 0.0) -> None:
+                 rho_jam: float = 5.4, gamma_w: float = 1.913, rho_shift: float = 0.0,
+                 speed_table: str = "") -> None:
         for k, v in (("U_f", U_f), ("beta", beta), ("tau", tau), ("rho_cut", rho_cut)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
         #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
         self.speed = SpeedLaw(speed_law, float(U_f), float(beta), float(rho_jam), float(gamma_w),
-                              float(rho_shift))
+                              float(rho_shift), table=speed_table)
         self._law = self.speed.array
         self.name = name
         self.law = law

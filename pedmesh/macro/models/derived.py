@@ -93,7 +93,7 @@ class Mac1(BarotropicModel):
 
     def __init__(self, *, U_f=1.034, beta=0.05, tau=0.5, rho_cut=1e-3, u_max=None,
                  speed_law="exponential", rho_jam=5.4, gamma_w=1.913, rho_shift=0.0,
-                 walls: float = 1.0, friction: float = 1.0, cutoff: float = 1.0,
+                 speed_table="", walls: float = 1.0, friction: float = 1.0, cutoff: float = 1.0,
                  split_friction: float = 1.0, imex: float = 1.0, **sfm) -> None:
         unknown = set(sfm) - set(_SFM_KEYS)
         if unknown:
@@ -109,7 +109,8 @@ class Mac1(BarotropicModel):
                else PressureLaw.speed_only(self.gamma1))
         super().__init__("mac1", law, U_f=U_f, beta=beta,
                          tau=tau, rho_cut=rho_cut, u_max=u_max, speed_law=speed_law,
-                         rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift)
+                         rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift,
+                         speed_table=speed_table)
         self.walls = bool(walls)
         self.use_friction = bool(friction)
         self.split_friction = bool(split_friction)
@@ -191,7 +192,7 @@ class Mac2(BarotropicModel):
 
     def __init__(self, name: str, *, local: bool, friction: bool, U_f=1.034, beta=0.05,
                  tau=0.5, rho_cut=1e-3, u_max=None, speed_law="exponential", rho_jam=5.4,
-                 gamma_w=1.913, rho_shift=0.0, lr_strength: float = 0.01,
+                 gamma_w=1.913, rho_shift=0.0, speed_table="", lr_strength: float = 0.01,
                  lr_length: float = 1.0, gamma1: float | None = None, **sfm) -> None:
         unknown = set(sfm) - set(_SFM_KEYS)
         if unknown:
@@ -214,7 +215,7 @@ class Mac2(BarotropicModel):
         law = PressureLaw.quadratic(self.gamma1) if local else PressureLaw.isothermal(0.0)
         super().__init__(name, law, U_f=U_f, beta=beta, tau=tau, rho_cut=rho_cut, u_max=u_max,
                          speed_law=speed_law, rho_jam=rho_jam, gamma_w=gamma_w,
-                         rho_shift=rho_shift)
+                         rho_shift=rho_shift, speed_table=speed_table)
         self.op = None
 
     def bind(self, mesh) -> None:

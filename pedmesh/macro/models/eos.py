@@ -44,7 +44,7 @@ class EquationOfStateModel(BarotropicModel):
                  beta: float = 0.05, tau: float = 0.5, rho_cut: float = 1e-3,
                  u_max: float | None = None, speed_law: str = "exponential",
                  rho_jam: float = 5.4, gamma_w: float = 1.913, rho_shift: float = 0.0,
-                 **sfm) -> None:
+                 speed_table: str = "", **sfm) -> None:
         from ...micro.params import SocialForceParams
 
         unknown = set(sfm) - set(SFM_KEYS)
@@ -55,7 +55,8 @@ class EquationOfStateModel(BarotropicModel):
         law = PressureLaw.table(fit["rho"], fit["p"], fit["dp"])
         super().__init__("eos", law, U_f=U_f, beta=beta, tau=tau, rho_cut=rho_cut,
                          u_max=u_max, default_exit="godunov", speed_law=speed_law,
-                         rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift)
+                         rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift,
+                         speed_table=speed_table)
         self.calibration = str(calibration) if calibration else str(DEFAULT_EOS)
         self.calibration_parameters = dict(cal.get("parameters", {}))
         # the SFM this run stands for: Table 1 defaults with the overrides given

@@ -106,14 +106,15 @@ class RDUE(MacroModel):
 
     def __init__(self, *, U_f: float = 1.034, beta: float = 0.05,
                  speed_law: str = "exponential", rho_jam: float = 5.4,
-                 gamma_w: float = 1.913, rho_shift: float = 0.0) -> None:
+                 gamma_w: float = 1.913, rho_shift: float = 0.0,
+                 speed_table: str = "") -> None:
         for k, v in (("U_f", U_f), ("beta", beta)):
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
         self.U_f, self.beta = float(U_f), float(beta)
         #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
         self.speed = SpeedLaw(speed_law, self.U_f, self.beta, float(rho_jam), float(gamma_w),
-                              float(rho_shift))
+                              float(rho_shift), table=speed_table)
         self._law = self.speed.array
         #: [ped/m^2] the density of the largest flow (the exits' demand)
         self.rho_star = self.speed.capacity_density
