@@ -21,7 +21,6 @@ points), relaxed for ``relax_time`` under the pair forces and the relaxation tow
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass
@@ -38,7 +37,8 @@ from .micro.params import SocialForceParams
 
 __all__ = ["CalibrationOptions", "measure_pressure", "calibrate", "fit_eos", "load_eos",
            "save_eos", "lattice_virial", "periodic_virial", "pedestrian_stress",
-           "flowing_stress", "eos_pressure", "DEFAULT_EOS", "EOS_FORMAT"]
+           "flowing_stress", "eos_pressure", "DEFAULT_EOS", "EOS_FORMAT",
+           "measure_fundamental_diagram", "fd_speed_table", "fd_corridor", "FD_PROTOCOL"]
 
 _SFM_KEYS = ("m", "A", "B", "r", "k", "kappa")
 
@@ -476,3 +476,114 @@ def flowing_stress(mesh, *, params: SocialForceParams | None = None, every: floa
             "dev_individual": acc["dev"] / acc["tr"],
             "p_eos": np.where(n > 0, eos_pressure(np.nan_to_num(rho_mean)), np.nan),
         }
+
+
+# ------------------------------------------------------------------ fundamental diagram
+#: How :func:`measure_fundamental_diagram` measures the SFM's speed at a density, for a
+#: continuum model's desired-speed law (the ``table`` law of :mod:`pedmesh.speed`):
+FD_PROTOCOL = """\
+A corridor FD_LENGTH x FD_WIDTH m (40 x 10), its far end (x = 40 m) the exit, filled over
+x in [0, FD_FILLED] m (30) at the start density rho0 (the lattice jittered by the seed); the
+density [ped/m^2] and mean speed [m/s] (centred differences of the trajectories) of the
+people in the box FD_BOX (x in [12, 22] m, y in [2, 8] m: 2 m from the walls) over the
+frames t in FD_WINDOW ([3, 6] s: after the acceleration, before the rarefaction from the
+crowd's front at x = 30 m reaches the box)."""
+FD_DENSITIES = (0.25, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5)  # [ped/m^2]
+FD_LENGTH, FD_WIDTH, FD_FILLED = 40.0, 10.0, 30.0  # [m]
+FD_BOX = (12.0, 2.0, 22.0, 8.0)  # [m] x0, y0, x1, y1
+FD_WINDOW = (3.0, 6.0)  # [s]
+FD_JAM_CAP = 8.0  # [ped/m^2] the jam point is never put beyond this
+FD_FPS = 10.0
+
+
+def _rect(x0, y0, x1, y1):
+    return [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+
+
+def fd_corridor(rho0: float):
+    """The corridor of :func:`measure_fundamental_diagram` filled at ``rho0`` [ped/m^2]."""
+    from .geometry import Exit, Room, StartArea
+
+    return Room(_rect(0, 0, FD_LENGTH, FD_WIDTH),
+                exits=[Exit("end", [(FD_LENGTH, 0), (FD_LENGTH, FD_WIDTH)])],
+                start_areas=[StartArea("crowd", _rect(0.2, 0.2, FD_FILLED, FD_WIDTH - 0.2),
+                                       density=rho0)],
+                name=f"fd-rho{rho0:g}")
+
+
+def box_density_speed(traj_file: Path) -> tuple[float, float, int]:
+    """Mean density [ped/m^2] and mean speed [m/s] of the people in :data:`FD_BOX` over the
+    frames in :data:`FD_WINDOW` of an SFM run's trajectories (centred differences), and the
+    number of speed samples."""
+    data = np.loadtxt(traj_file, comments="#")
+    pid, frame, x, y = data[:, 0].astype(int), data[:, 1].astype(int), data[:, 2], data[:, 3]
+    order = np.lexsort((frame, pid))
+    pid, frame, x, y = pid[order], frame[order], x[order], y[order]
+    same = (pid[2:] == pid[:-2]) & (frame[2:] - frame[:-2] == 2)
+    k = np.flatnonzero(same) + 1  # samples with a neighbour frame on each side
+    u = np.hypot(x[k + 1] - x[k - 1], y[k + 1] - y[k - 1]) * FD_FPS / 2.0
+    t = frame[k] / FD_FPS
+    x0, y0, x1, y1 = FD_BOX
+    sel = ((t >= FD_WINDOW[0]) & (t <= FD_WINDOW[1]) & (x[k] >= x0) & (x[k] < x1)
+           & (y[k] >= y0) & (y[k] < y1))
+    frames = np.unique(frame[k][sel])
+    if not len(frames):
+        return math.nan, math.nan, 0
+    rho = sel.sum() / len(frames) / ((x1 - x0) * (y1 - y0))
+    return float(rho), float(u[sel].mean()), int(sel.sum())
+
+
+def measure_fundamental_diagram(preset: str | None = None, seeds: int = 2,
+                                overrides: dict | None = None,
+                                densities: tuple[float, ...] = FD_DENSITIES,
+                                log: Callable[[str], None] | None = None) -> list[dict]:
+    """The social force model's fundamental diagram under ``preset`` (with ``overrides``):
+    for each start density rho0 in ``densities`` [ped/m^2] and seed 1..``seeds``, the
+    density [ped/m^2] and mean speed [m/s] measured in the corridor's box (the protocol of
+    :data:`FD_PROTOCOL`). Rows: rho0, seed, density, speed, samples, wall_s."""
+    import tempfile
+
+    from .run import run_model
+
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="pedmesh-fd-") as tmp:
+        for rho0 in densities:
+            room = fd_corridor(rho0)
+            mesh = room.mesh(max_area=2.0)
+            for seed in range(1, seeds + 1):
+                out = Path(tmp) / f"{rho0:g}-{seed}"
+                t0 = time.perf_counter()
+                run_model(room, mesh, "sfm", overrides=dict(overrides or {}),
+                          t_end=FD_WINDOW[1] + 0.2, out_dir=out, quiet=True, preset=preset,
+                          model_options={"seed": seed, "trajectory_rate": FD_FPS})
+                rho, u, n = box_density_speed(out / "trajectories.txt")
+                rows.append({"rho0": rho0, "seed": seed, "density": rho, "speed": u,
+                             "samples": n, "wall_s": time.perf_counter() - t0})
+                if log is not None:
+                    log(f"  rho0 {rho0:4g} seed {seed}: density {rho:.3f} /m^2, speed "
+                        f"{u:.3f} m/s ({n} samples, {rows[-1]['wall_s']:.1f} s)")
+    return rows
+
+
+def fd_speed_table(rows: list[dict], U_f: float) -> list[tuple[float, float]]:
+    """The ``table`` law's points (density [ped/m^2], g) of the measurements of
+    :func:`measure_fundamental_diagram`: the (density, speed / ``U_f``) pairs averaged
+    over the seeds, sorted by density, made non-increasing (a later point never above an
+    earlier one), with 0:1 in front and the jam point where the line through the last two
+    points reaches g = 0 (capped at ``FD_JAM_CAP``)."""
+    by = {}
+    for r in rows:
+        if math.isfinite(r["density"]):
+            by.setdefault(r["rho0"], []).append((r["density"], r["speed"]))
+    pts = sorted((float(np.mean([d for d, _ in v])), float(np.mean([u for _, u in v])) / U_f)
+                 for v in by.values())
+    out = [(0.0, 1.0)]
+    for rho, g in pts:
+        if rho <= out[-1][0] + 1e-3:
+            continue
+        out.append((round(rho, 3), round(min(g, out[-1][1]), 4)))
+    (r1, g1), (r2, g2) = out[-2], out[-1]
+    slope = (g2 - g1) / (r2 - r1) if r2 > r1 else 0.0
+    jam = r2 - g2 / slope if slope < 0 else FD_JAM_CAP
+    out.append((round(min(max(jam, r2 + 0.1), FD_JAM_CAP), 3), 0.0))
+    return out

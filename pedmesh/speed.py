@@ -190,17 +190,39 @@ class SpeedLaw:
         """The density [ped/m^2] of the largest flow (1/beta for the exponential law)."""
         if self.kind == EXPONENTIAL and 1.0 / self.beta >= self.shift:
             return 1.0 / self.beta
+        if self.kind == TABLE:
+            return self._table_capacity_density()
         from scipy.optimize import minimize_scalar
 
         if self.kind == WEIDMANN:
             top = self.shift + self.rho_jam
-        elif self.kind == TABLE:
-            top = self.shift + self.table[-1][0] * (1.0 if self.table[-1][1] == 0 else 4.0)
         else:
             top = self.shift + 10.0 / self.beta
         res = minimize_scalar(lambda r: -float(self.flow(r)), bounds=(1e-6, top),
                               method="bounded", options={"xatol": 1e-10})
         return float(res.x)
+
+    def _table_capacity_density(self) -> float:
+        """The ``table`` law's capacity density, exactly: on each segment the flow
+        (x + shift) U_f g(x) is a quadratic in x, so its largest value is at a segment's end
+        or at the quadratic's vertex."""
+        if self.table[-1][1] > 0.0:
+            raise ParameterError(
+                f"speed_table {format_speed_table(self.table)!r} never reaches g = 0, so its "
+                f"flow rho U_e(rho) has no largest value: end it with a jam point rho:0")
+        best, arg = -1.0, 0.0
+        for (x0, g0), (x1, g1) in zip(self.table, self.table[1:]):
+            s = (g1 - g0) / (x1 - x0)
+            cands = [x0, x1]
+            if s < 0.0:  # d/dx [(x + shift)(g0 + s (x - x0))] = 0
+                xv = (s * x0 - g0 - s * self.shift) / (2.0 * s)
+                if x0 < xv < x1:
+                    cands.append(xv)
+            for x in cands:
+                f = (x + self.shift) * (g0 + s * (x - x0))
+                if f > best:
+                    best, arg = f, x + self.shift
+        return float(arg)
 
     @property
     def capacity(self) -> float:

@@ -195,6 +195,13 @@ def test_table_law_text_and_properties():
     # the capacity is the largest rho U_e, on a grid as well as by the optimizer
     rho = np.linspace(0.0, 5.6, 56001)
     assert law.capacity == pytest.approx(float(np.max(law.flow(rho))), rel=1e-6)
+    shifted = SpeedLaw("table", U_f=1.34, table=TABLE, shift=0.65)
+    rho = np.linspace(0.0, 6.3, 63001)
+    assert shifted.capacity == pytest.approx(float(np.max(shifted.flow(rho))), rel=1e-6)
+    assert shifted.capacity_density == pytest.approx(rho[np.argmax(shifted.flow(rho))],
+                                                     abs=2e-4)
+    with pytest.raises(ParameterError, match="never reaches g = 0"):
+        SpeedLaw("table", table=[(0, 1), (2, 0.5)]).capacity_density
     p = law.parameters()
     assert p["speed_law"] == "table"
     again = SpeedLaw("table", U_f=1.34, table=p["speed_table"])
