@@ -141,8 +141,17 @@ def test_validated_is_the_fit_and_the_default():
             assert pre.values[k].value == v
     for k in fit["fitted"]:
         assert pre.values[k].source.startswith("fitted")
-    assert pre.values["speed_law"].value == "weidmann" and pre.values["U_f"].value == 1.34
+    for k in fit.get("carried", {}):  # (fixed at the Weidmann fit's values)
+        assert pre.values[k].value == fit["carried"][k]
+        assert pre.values[k].source.startswith("fitted with Weidmann's law")
+    assert pre.values["speed_law"].value == "table" and pre.values["U_f"].value == 1.34
     assert pre.values["density_self"].value == 0
+    # the SFM's table is in its kernel density; the continuum models get its measured
+    # fundamental diagram instead (tests/calibration/test_fundamental_diagram.py)
+    fd = json.loads((DATA / "fd_validated.json").read_text())
+    assert pre.continuum["speed_table"].value == fd["speed_table"] != fit["parameters"][
+        "speed_table"]
+    assert "rho_shift" not in pre.values
     cal = json.loads((DATA / "eos_validated.json").read_text())
     assert pre.values["calibration"].value == str(DATA / "eos_validated.json")
     assert cal["status"] == "complete"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import textwrap
 
 HELP = "list the parameter presets (values, units, sources)"
 DESCRIPTION = """\
@@ -36,8 +37,8 @@ def _show(key: str, v, width: int) -> None:
     value = v.value if isinstance(v.value, str) else f"{v.value:g}"
     if len(value) > 11:
         print(f"  {key:<{width}}  {'':>11} {v.unit:<9} {v.source}")
-        for k in range(0, len(value), 72):
-            print(f"  {'':<{width}}    {value[k:k + 72]}")
+        for line in textwrap.wrap(value, 72):
+            print(f"  {'':<{width}}    {line}")
         return
     print(f"  {key:<{width}}  {value:>11} {v.unit:<9} {v.source}")
 
