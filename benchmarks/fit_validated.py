@@ -633,7 +633,10 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         + ", ".join(f"{n} {FIT[n]['grid']}" for n in NAMES)
         + "), then bounded Nelder-Mead from the best grid point "
         f"(scaled coordinates, xatol 1.5 % of each range, {len(nmr)} new runs); "
-        f"benchmarks/fit_validated.py, evaluations in docs/validation/fit_evaluations.csv")
+        f"benchmarks/fit_validated.py --law {LAW}, evaluations in docs/validation/"
+        f"{LAWS[LAW]['csv']}"
+        + (f"; each point the mean of realisations (seeds) {', '.join(map(str, SEEDS))}"
+           if SEEDS != (None,) else ""))
     out = {
         "parameters": {"preset": PRESET, **model_parameters(x)},
         "objective": round(float(best["objective"]), 4),
@@ -660,12 +663,18 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
     md = ["# SFM parameters fitted to the validation data", "",
           "Written by `benchmarks/fit_validated.py` (the objective and the method are in its "
           "docstring); values in `pedmesh/data/validated.json`, every evaluation in "
-          "`docs/validation/fit_evaluations.csv`, the full validation table of the fitted set "
+          f"`docs/validation/{LAWS[LAW]['csv']}`, the full validation table of the fitted set "
           "in `validated/validation.md`.", "",
           f"Preset `{PRESET}` with fixed {', '.join(f'`{k}={v}`' for k, v in FIXED.items())}; "
           f"fitted: {', '.join(f'`{n}` = {x[n]:g}' for n in NAMES)} "
-          f"(bounds {bounds_txt}). "
-          f"Objective F = {best['objective']:.2f} (eval #{best['eval']:.0f}, {best['phase']}).",
+          f"(bounds {bounds_txt})"
+          + (f"; the speed table `{model_parameters(x)['speed_table']}`" if LAW == "table"
+             else "")
+          + (f"; each point the mean of realisations (seeds) {', '.join(map(str, SEEDS))}"
+             if SEEDS != (None,) else "")
+          + f". Objective F = {best['objective']:.2f} (eval #{best['eval']:.0f}, "
+          f"{best['phase']}). `validated/validation.md` has the fitted set in six "
+          "realisations.",
           "", "## Targets", "",
           "| target | simulation | reference | error | band | pass |", "|---|---|---|---|---|---|"]
     for t in tg:
@@ -697,11 +706,14 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                   + " ".join(_f(r[f"Jb_sim/b={b:g}"]) for b in WIDTHS) + " | "
                   + " ".join(_pc(r[f"err/fd/rho={d:g}"]) for d in FD_RHOS)
                   + f" | {float(r['seconds']):.0f} |")
-    md += ["", "Full table of the fitted set:", "", "```",
-           f"python benchmarks/validation.py --preset {PRESET} {params} --entrance "
-           f"{ENTRANCE} --bottleneck --free"
-           + (f" --seeds {','.join(str(s) for s in SEEDS)}" if SEEDS != (None,) else "")
-           + " --out docs/validation/validated", "```", ""]
+    if LAW == "table":  # (the preset reads what this fit wrote)
+        cmd = ("python benchmarks/validation.py --preset validated --entrance "
+               f"{ENTRANCE} --bottleneck --free --seeds 1,2,3,4,5,6 "
+               "--out docs/validation/validated")
+    else:
+        cmd = (f"python benchmarks/validation.py --preset {PRESET} {params} --entrance "
+               f"{ENTRANCE} --bottleneck --free --out docs/validation/validated")
+    md += ["", "Full table of the fitted set:", "", "```", cmd, "```", ""]
     OUT_MD.parent.mkdir(parents=True, exist_ok=True)
     OUT_MD.write_text("\n".join(md))
     return out

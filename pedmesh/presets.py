@@ -12,13 +12,16 @@ model everything).
 * ``weidmann``: the paper's social force model with the desired speed of Weidmann's
   fundamental diagram (free speed 1.34 m/s, jam density 5.4 /m^2). Literature values, not
   fitted to experiments.
-* ``validated`` (the default): Weidmann's law with the free speed 1.34 m/s felt without
-  one's own kernel share (``density_self=0``), ``gamma_w``, ``rho_jam``, ``tau`` and the
-  repulsion strength ``A`` fitted by ``benchmarks/fit_validated.py`` to the Juelich corridor
-  runs (fed with the experiment's inflow), bottleneck flows and the fundamental diagram
+* ``validated`` (the default): the social force model's desired speed a table
+  (``speed_law=table``) in its kernel density without one's own share (``density_self=0``,
+  free speed 1.34 m/s), fitted by ``benchmarks/fit_validated.py`` to the Juelich corridor
+  runs (fed with the experiment's inflow), bottleneck flows and the fundamental diagram, with
+  ``tau`` and the repulsion strength ``A`` of its earlier fit of Weidmann's law
   (``pedmesh/data/validated.json``; the table in ``docs/validation/fit.md``), Table 1
-  otherwise; ``eos`` takes the equation of state
-  measured with these parameters (``pedmesh/data/eos_validated.json``).
+  otherwise. The continuum models take the fitted SFM's own fundamental diagram, measured by
+  ``benchmarks/continuum_law.py`` (``pedmesh/data/fd_validated.json``), as their table
+  (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with these
+  parameters (``pedmesh/data/eos_validated.json``).
 
 ``pedmesh presets`` lists them with values, units and sources.
 """
