@@ -240,8 +240,8 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
     if not experiments:
         raise SystemExit(f"no experiment files in {data_dir / 'data'} "
                          "(--data DIR or PEDMESH_EXPERIMENTS)")
-    rows, sim_fd, exp_fd = [], ([], []), ([], [])
-    by_seed: dict[Any, tuple[list, list]] = {}
+    rows, exp_fd = [], ([], [])
+    by_seed: dict[Any, tuple[list, list]] = {}  # a realisation's FD samples of every run
     for name, exp in experiments.items():
         path = ROOMS / f"{name}.json"
         room = load_room(path)
@@ -260,8 +260,6 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
                 sim = V.measure(V.load_run(out), V.corridor_setup(room.walkable),
                                 fd_frames=fd_frames)
                 sims.append(sim)
-                sim_fd[0].append(sim["fd_density"])
-                sim_fd[1].append(sim["fd_speed"])
                 by_seed.setdefault(seed, ([], []))
                 by_seed[seed][0].append(sim["fd_density"])
                 by_seed[seed][1].append(sim["fd_speed"])
@@ -294,6 +292,7 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
                         FD_HALF_WIDTH)
 
     fd = []
+    sim_fd = tuple([a for part in by_seed.values() for a in part[i]] for i in (0, 1))
     per_seed = [pooled(by_seed[seed]) for seed in seeds if seed in by_seed]
     for k, (s_bin, e_bin) in enumerate(zip(pooled(sim_fd), pooled(exp_fd))):
         rho = s_bin["density"]
