@@ -110,7 +110,8 @@ def _validated() -> "Preset | None":
         if k not in UNITS:  # (not a model parameter, e.g. the preset the fit started from)
             continue
         if k in fitted:
-            src = FIT
+            src = FIT + ("; U_e/U_f at the kernel density without one's own share"
+                         if k == "speed_table" else "")
         elif k in fit.get("carried", {}):
             src = ("fitted with Weidmann's law to the same data (benchmarks/fit_validated.py "
                    "--law weidmann), kept when the law was fitted as a table")
@@ -130,9 +131,6 @@ def _validated() -> "Preset | None":
     if fit["parameters"].get("speed_law") == "table":
         # the social force model's law is a table in its kernel density; the continuum
         # models take its fundamental diagram, measured, as theirs
-        values["speed_table"] = Value(
-            fit["parameters"]["speed_table"], "ped/m^2 : -",
-            FIT + "; U_e/U_f at the kernel density without one's own share")
         if fd.is_file():
             continuum["speed_table"] = Value(
                 json.loads(fd.read_text())["speed_table"], "ped/m^2 : -",
