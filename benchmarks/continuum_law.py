@@ -6,21 +6,12 @@ without a pedestrian's own share (``density_self=0``), which reads lower than th
 true density (nobody stands within a body diameter of anyone, lanes form, walls cut the
 kernel). A continuum model's density is the true one. So that both models share one
 fundamental diagram, the continuum models take as their law ``U_e(rho) = U_f g(rho)`` the
-speed the social force model actually walks at the density rho, measured here:
-
-* a corridor 40 m long and 10 m wide, its far end (x = 40 m) the exit, filled over
-  x in [0, 30] m at the density rho0 (the start lattice jittered by the seed);
-* the density [ped/m^2] and mean speed [m/s] of the people in the box x in [12, 22] m,
-  y in [2, 8] m (2 m from the walls), over the frames t in [3, 6] s: after the
-  acceleration (tau = 0.3 s), before the rarefaction from the crowd's front at x = 30 m
-  reaches the box;
-* rho0 = 0.25 ... 5.5 /m^2, ``--seeds`` realisations each; the table's points are the
-  measured (density, speed / U_f) pairs averaged over the seeds, sorted by density, made
-  non-increasing (a later point never above an earlier one), with 0:1 in front and the
-  jam point where the line through the last two points reaches g = 0 (capped at
-  8 /m^2).
-
-(:func:`pedmesh.calibration.measure_fundamental_diagram` and ``fd_speed_table``.)
+speed the social force model actually walks at the density rho, measured by
+:func:`pedmesh.calibration.measure_fundamental_diagram` (its protocol,
+``pedmesh.calibration.FD_PROTOCOL``: a 40 x 10 m corridor filled over 30 m at the start
+densities 0.25 ... 5.5 /m^2, ``--seeds`` realisations each, the density and speed in a box
+2 m from the walls at t 3-6 s) and made a table by ``fd_speed_table`` (the seeds' means,
+never faster when denser, 0:1 in front, a jam point extrapolated from the last two).
 
 Writes ``pedmesh/data/fd_<preset>.json`` (the table as ``speed_table`` text, every
 measurement, the protocol, the SFM parameters) unless ``--no-write``; the preset

@@ -147,15 +147,16 @@ LAWS: dict[str, dict[str, Any]] = {
         "seeds": (None,),
         "csv": "fit_evaluations.csv",
     },
-    # the table law: g = U_e/U_f at four kernel densities, tau and A of the Weidmann fit
+    # the table law: g = U_e/U_f at four kernel densities "rho" [ped/m^2] (without one's
+    # own share), tau and A of the Weidmann fit
     "table": {
         "fixed": {"speed_law": "table", "density_self": 0, "U_f": 1.34, "tau": 0.3062,
                   "A": 962.0},
         "fit": {
-            "g03": {"bounds": (0.8, 1.0), "decimals": 3, "grid": (0.94, 0.98)},
-            "g06": {"bounds": (0.5, 0.95), "decimals": 3, "grid": (0.74, 0.82)},
-            "g15": {"bounds": (0.3, 0.8), "decimals": 3, "grid": (0.56, 0.64)},
-            "g27": {"bounds": (0.1, 0.5), "decimals": 3, "grid": (0.29, 0.37)},
+            "g03": {"rho": 0.3, "bounds": (0.8, 1.0), "decimals": 3, "grid": (0.94, 0.98)},
+            "g06": {"rho": 0.6, "bounds": (0.5, 0.95), "decimals": 3, "grid": (0.74, 0.82)},
+            "g15": {"rho": 1.5, "bounds": (0.3, 0.8), "decimals": 3, "grid": (0.56, 0.64)},
+            "g27": {"rho": 2.7, "bounds": (0.1, 0.5), "decimals": 3, "grid": (0.29, 0.37)},
         },
         "seeds": (1, 2),
         "csv": "fit_evaluations_table.csv",
@@ -163,9 +164,7 @@ LAWS: dict[str, dict[str, Any]] = {
         "carried": ("tau", "A"),
     },
 }
-#: the table law's densities [ped/m^2] of g03, g06, g15, g27 (kernel densities without
-#: one's own share), and where it reaches 0
-TABLE_KNOTS = {"g03": 0.3, "g06": 0.6, "g15": 1.5, "g27": 2.7}
+#: [ped/m^2] where the table law reaches 0
 TABLE_ZERO = 5.6
 LAW = "table"
 FIXED: dict[str, Any] = LAWS[LAW]["fixed"]
@@ -230,9 +229,9 @@ def speed_table(x: dict[str, float]) -> str:
     """The ``speed_table`` of the table law at the point ``x`` (g03..g27): the points
     0:1, then each knot's g, never above the one before, then TABLE_ZERO:0."""
     pts, g_prev = ["0:1"], 1.0
-    for n, rho in TABLE_KNOTS.items():
+    for n, knot in LAWS["table"]["fit"].items():
         g_prev = min(float(x[n]), g_prev)
-        pts.append(f"{rho:g}:{g_prev:g}")
+        pts.append(f"{knot['rho']:g}:{g_prev:g}")
     pts.append(f"{TABLE_ZERO:g}:0")
     return " ".join(pts)
 
@@ -320,15 +319,16 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
     for k in ("failed", "clogged", "seconds"):
         out[k] = float(sum(float(r[k]) for r in recs))
     out["rms_all"] = float(np.mean([float(r["rms_all"]) for r in recs]))
+    from validation import _rel  # (sim / ref - 1, nan if either is missing)
+
     for name in CORRIDOR_RUNS:
-        out[f"err/corridor/{name}/J_exit"] = (out[f"J_exit_sim/{name}"]
-                                              / out[f"J_exit_exp/{name}"] - 1.0)
+        out[f"err/corridor/{name}/J_exit"] = _rel(out[f"J_exit_sim/{name}"],
+                                                  out[f"J_exit_exp/{name}"])
     for b in WIDTHS:
-        out[f"err/bottleneck/b={b:g}"] = out[f"Jb_sim/b={b:g}"] / BOTTLENECK_REF - 1.0
+        out[f"err/bottleneck/b={b:g}"] = _rel(out[f"Jb_sim/b={b:g}"], BOTTLENECK_REF)
     for d in FD_RHOS:
-        ref, sim = float(out[f"v_exp/rho={d:g}"]), float(out[f"v_sim/rho={d:g}"])
-        out[f"err/fd/rho={d:g}"] = (sim / ref - 1.0 if math.isfinite(ref)
-                                    and math.isfinite(sim) else math.nan)
+        out[f"err/fd/rho={d:g}"] = _rel(float(out[f"v_sim/rho={d:g}"]),
+                                        float(out[f"v_exp/rho={d:g}"]))
     return out
 
 
