@@ -107,10 +107,11 @@ def step_split(mesh, batches=7, reps=40):
     t_lists = tm(lists)
     forces = tm(lambda: K.pair_accel_list(sim.x, sim.v, n, sim._pi, sim._pj, n_near, n_far,
                                           sim.rc_f, sim.rc_d, sim.rad, p.A, p.B, p.k, p.kappa,
-                                          p.m, p.R, F, rho, False))
+                                          p.m, p.R, F, rho, False, sim.rad, 1.0,
+                                          sim._e))
     walls = tm(lambda: K.wall_accel(sim.x, sim.v, n, w.piece, w.next_seg, w.x0, w.y0, w.inv_cell,
                                     w.nx, w.ny, w.cell_ptr, w.cell_seg, sim.rc_w, sim.rad, p.A, p.B,
-                                    p.k, p.kappa, p.m, F))
+                                    p.k, p.kappa, p.m, F, sim.rad))
     per["  cell list + pair list + kernel density (once per step)"] = t_lists
     per["  pair forces (3 per step)"] = 3 * forces
     per["  walls (3 per step)"] = 3 * walls

@@ -17,9 +17,16 @@
    is the experiment's boundary condition; ``door`` asks the model to predict the
    entrance flow as well.
 2. ``--bottleneck``: 150 people waiting directly in front of a 2.8 m long corridor of width
-   b = 0.8, 1.2, 1.8, 2.5 m (the widths of Seyfried et al. 2009 / Liddle et al. 2011; the
-   room is generated here, its proportions are this script's choice): specific flow J/b
-   [1/(m s)] at the middle of the corridor by the same quantile flow, against ~1.9.
+   b = 0.5, 0.6, 0.8, 1.0, 1.2, 1.8, 2.5 m (the length of Seyfried et al. 2009 / Liddle et
+   al. 2011; the room is generated here, its proportions are this script's choice), a crowd
+   that presses to get through: specific flow J/b [1/(m s)] at the middle of the corridor
+   by the same quantile flow, against the published band at that width
+   (:func:`pedmesh.validation.published_band`: Kretz 2006, Seyfried 2009, Liddle /
+   Rupprecht 2011, Mueller 1981, Nagai 2006, Daamen 2010, Liao 2014), and PedPy's Voronoi
+   density in front of the opening (a FRONT_DEPTH deep area reaching FRONT_MARGIN beyond
+   each side, mean over the flow's steady state) against the 6-9 /m^2 of pressing crowds
+   (Adrian, Seyfried & Sieben 2020). ``bottleneck.png`` plots both against the published
+   points.
 3. ``--free``: three pedestrians 15 m apart in a 60 m corridor: mean speed [m/s] against
    the free walking speed 1.34 m/s.
 
@@ -68,7 +75,12 @@ ROOMS = ROOT / "geometries" / "experiments"
 MESH_OPTIONS = {"max_area": 2.0, "min_angle": 30.0, "feature_area": 0.3, "exit_size": None}
 FD_DENSITIES = (1.0, 2.0, 3.0)  # [1/m^2]
 FD_HALF_WIDTH = 0.25  # [1/m^2]
-BOTTLENECK_WIDTHS = (0.8, 1.2, 1.8, 2.5)  # [m]
+#: [m] the bottleneck series (issue: Kretz 2006 to Liddle 2011 cover 0.4-2.5 m)
+BOTTLENECK_WIDTHS = (0.5, 0.6, 0.8, 1.0, 1.2, 1.8, 2.5)
+#: [m] depth of the area in front of the opening where the Voronoi density is measured;
+#: the area reaches FRONT_MARGIN beyond each side of the opening
+FRONT_DEPTH = 1.0
+FRONT_MARGIN = 0.5
 BOTTLENECK_LENGTH = 2.8  # [m]
 BOTTLENECK_PEOPLE = 150
 PARTS = ("corridor", "bottleneck", "free")
@@ -99,6 +111,15 @@ def bottleneck_room(width_m: float, *, length_m: float = BOTTLENECK_LENGTH,
                 measurement_lines=[MeasurementLine("middle", [(xl, d_wait + 0.5 * length_m),
                                                               (xr, d_wait + 0.5 * length_m)])],
                 name=f"bottleneck-b{width_m:g}")
+
+
+def bottleneck_front(width_m: float) -> list[tuple[float, float]]:
+    """The area [m] in front of the opening of :func:`bottleneck_room` where the density is
+    measured: FRONT_DEPTH deep, FRONT_MARGIN wider than the opening on each side."""
+    xl = 4.0 - 0.5 * width_m - FRONT_MARGIN
+    xr = 4.0 + 0.5 * width_m + FRONT_MARGIN
+    y1 = 7.5
+    return [(xl, y1 - FRONT_DEPTH), (xr, y1 - FRONT_DEPTH), (xr, y1), (xl, y1)]
 
 
 def free_room(*, length_m: float = 60.0, width_m: float = 4.0) -> Room:
@@ -307,33 +328,89 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
 def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
                     trajectory_rate: float = 10.0, widths: Iterable[float] = BOTTLENECK_WIDTHS,
                     seeds: Iterable[int | None] = (None,), log=print) -> list[dict[str, Any]]:
-    """Specific flow J/b [1/(m s)] through bottlenecks of the given widths [m] (the mean
-    over the realisations ``seeds``)."""
+    """The bottleneck series: per width b [m], the specific flow J/b [1/(m s)] at the middle
+    of the corridor, PedPy's Voronoi density [1/m^2] in front of the opening (mean over the
+    flow's steady state), the published band of J/b at that width, and who was left inside
+    at the end (``stuck``); the means over the realisations ``seeds``."""
     rows = []
     seeds = tuple(seeds)
     for b in widths:
         room = bottleneck_room(b)
-        flows, summaries = [], []
+        setup = V.MeasurementSetup(walkable=room.walkable,
+                                   lines={"middle": room.measurement_lines[0].polyline},
+                                   area=bottleneck_front(b), steady_line="middle")
+        flows, dens, summaries = [], [], []
         for seed in seeds:
             out = _seed_dir(runs_dir, f"b{b:g}", seed, seeds)
             s = run_sfm(room, out, overrides=overrides, preset=preset, t_end=t_end,
                         trajectory_rate=trajectory_rate, model_options=_seed_options(seed))
             summaries.append(s)
             if s["error"] is None:
-                times = V.passage_times(V.load_run(out), room.measurement_lines[0].polyline)
-                flows.append(V.quantile_flow(times))
+                m = V.measure(V.load_run(out), setup)
+                flows.append(m["flow"]["middle"])
+                dens.append(m["density"])
         bad = [s for s in summaries if s["error"] is not None or s.get("status") != "finished"]
         s = bad[0] if bad else summaries[0]
         flow = _mean(flows)
+        lo, hi, n_pub = V.published_band(b)
+        stuck = max((int(x.get("n_initial") or 0) - int(x.get("n_evacuated") or 0)
+                     for x in summaries if x["error"] is None), default=-1)
         row = {"width_m": b, "J": flow, "J_per_b": flow / b, "status": s.get("status"),
                "error": s["error"], "wall_s": float(sum(x["wall_s"] for x in summaries)),
-               "err": _rel(flow / b, V.SPECIFIC_BOTTLENECK_FLOW_PER_MS)}
+               "err": _rel(flow / b, V.SPECIFIC_BOTTLENECK_FLOW_PER_MS),
+               "band": [lo, hi], "band_points": n_pub,
+               "in_band": bool(lo <= flow / b <= hi) if math.isfinite(flow) else False,
+               "front_density": _mean(dens), "stuck": stuck}
         if len(seeds) > 1:
             row["J_per_b_sims"] = [f / b for f in flows]
+            row["front_density_sims"] = [float(d) for d in dens]
         rows.append(row)
         log(f"  bottleneck b = {b:g} m: {row['status']}, {row['wall_s']:.1f} s wall"
             + (f" ({row['error']})" if row["error"] else ""))
     return rows
+
+
+def plot_bottleneck(rows: list[Mapping[str, Any]], path: Path, title: str = "") -> None:
+    """``path`` (PNG): the series' J/b and front density against the published points."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    markers = "osD^v<>ph"
+    for k, ser in enumerate(V.published_bottleneck_flows()):
+        pts = ser["points"]
+        a1.plot(pts[:, 0], pts[:, 1] / pts[:, 0], markers[k % len(markers)], mfc="none",
+                color="0.45", ms=5, label=ser["label"])
+    b = np.array([r["width_m"] for r in rows])
+    jb = np.array([r["J_per_b"] for r in rows], float)
+    band = np.array([r["band"] for r in rows], float)
+    a1.fill_between(b, band[:, 0], band[:, 1], color="tab:green", alpha=0.15,
+                    label="published band at the series' widths")
+    a1.plot(b, jb, "-o", color="tab:red", lw=2, label="pedmesh SFM")
+    a1.set_xlabel("bottleneck width b [m]")
+    a1.set_ylabel("specific flow J/b [1/(m s)]")
+    a1.set_xlim(0.3, 2.8)
+    a1.set_ylim(1.0, 3.0)
+    a1.legend(fontsize=7, ncol=2)
+    a1.grid(alpha=0.3)
+    rho = np.array([r["front_density"] for r in rows], float)
+    lo, hi = V.PRESSING_FRONT_DENSITY_PER_M2
+    a2.axhspan(lo, hi, color="tab:green", alpha=0.15,
+               label="pressing crowds in front of entrances (Adrian et al. 2020)")
+    a2.plot(b, rho, "-o", color="tab:red", lw=2, label="pedmesh SFM")
+    a2.set_xlabel("bottleneck width b [m]")
+    a2.set_ylabel(f"Voronoi density in front [1/m$^2$] ({FRONT_DEPTH:g} m deep)")
+    a2.set_ylim(0, 10)
+    a2.legend(fontsize=7)
+    a2.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def free_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
@@ -389,13 +466,14 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
                    out_dir: str | Path | None = None, t_end: float = 600.0,
                    trajectory_rate: float = 10.0, fd_frames: str = "all",
                    entrance: str = "door", seeds: Iterable[int | None] = (None,),
+                   widths: Iterable[float] = BOTTLENECK_WIDTHS,
                    log=print) -> dict[str, Any]:
     """Run the ``parts`` (``corridor``, ``bottleneck``, ``free``) with parameter
     ``overrides`` on top of ``preset``; every number, the errors (:func:`errors_of`) and
     the wall time [s]. The runs go to ``out_dir/runs`` (a temporary directory if None).
     ``seeds``: the realisations of every corridor and bottleneck run (None: the
     unjittered lattice and entrance spots); the values are their means, the FD their
-    pooled samples."""
+    pooled samples. ``widths``: the bottleneck series' widths [m]."""
     parts = tuple(parts)
     seeds = tuple(seeds)
     if not seeds:
@@ -417,7 +495,7 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
             results["corridor"] = corridor_part(data_dir, runs / "corridor",
                                                 fd_frames=fd_frames, entrance=entrance, **kw)
         if "bottleneck" in parts:
-            results["bottleneck"] = bottleneck_part(runs / "bottleneck", **kw)
+            results["bottleneck"] = bottleneck_part(runs / "bottleneck", widths=widths, **kw)
         if "free" in parts:
             results["free"] = free_part(runs / "free", **kw)
     results["errors"] = errors_of(results)
@@ -475,15 +553,20 @@ def tables(results: Mapping[str, Any]) -> list[tuple[str, list[str], list[list[s
         out.append((f"Pooled Voronoi speed [m/s] by density ({corridor['fd_frames']} frames"
                     f"{seeds_txt})", head, rows))
     if results.get("bottleneck"):
-        head = ["b [m]", "J [1/s]", "J/b sim [1/(m s)]", "J/b ref", "err", "wall [s]"]
+        head = ["b [m]", "J [1/s]", "J/b sim [1/(m s)]", "published J/b", "in band",
+                "rho front [1/m^2]", "stuck", "wall [s]"]
         rows = [[f"{r['width_m']:g}", _f(r["J"]), _f(r["J_per_b"]),
-                 _f(V.SPECIFIC_BOTTLENECK_FLOW_PER_MS), _pct(r["err"]), _f(r["wall_s"], ".1f")]
+                 f"{_f(r['band'][0])}-{_f(r['band'][1])} ({r['band_points']})",
+                 "yes" if r["in_band"] else "no", _f(r["front_density"]), str(r["stuck"]),
+                 _f(r["wall_s"], ".1f")]
                 for r in results["bottleneck"]]
         if any("J_per_b_sims" in r for r in results["bottleneck"]):
             head.insert(3, "J/b per realisation")
             for row, r in zip(rows, results["bottleneck"]):
                 row.insert(3, " ".join(_f(v) for v in r.get("J_per_b_sims", [])))
-        out.append(("Bottleneck: specific flow", head, rows))
+        out.append(("Bottleneck series: specific flow against the published band (points "
+                    "within 12 % of the width), Voronoi density in front of the opening, and "
+                    "who was left inside", head, rows))
     free = results.get("free")
     if free:
         out.append(("Free walking", ["v sim [m/s]", "v ref [m/s]", "err", "samples", "wall [s]"],
@@ -531,6 +614,10 @@ def write_report(results: Mapping[str, Any], out_dir: Path) -> None:
     md += [(f"RMS of {e['count']:.0f} relative errors: {e['rms']:.3f}; failed runs: "
             f"{e['failed']:.0f}; wall time {results['wall_s']:.0f} s."), ""]
     (out_dir / "validation.md").write_text("\n".join(md))
+    if results.get("bottleneck"):
+        plot_bottleneck(results["bottleneck"], out_dir / "bottleneck.png",
+                        f"preset {results['preset'] or 'default'}, overrides "
+                        f"{results['overrides'] or 'none'}")
 
 
 def main(argv: list[str] | None = None) -> int:

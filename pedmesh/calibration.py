@@ -129,7 +129,8 @@ def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F):
                         d2 = dx * dx + dy * dy
                         if d2 < rc2 and d2 > 0.0:
                             fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0],
-                                                v[j, 1] - v[i, 1], rij, A, invB, k, kappa)
+                                                v[j, 1] - v[i, 1], rij, A, invB, k, kappa,
+                                                rij)
                             fx *= inv_m
                             fy *= inv_m
                             F[i, 0] += fx
@@ -363,7 +364,7 @@ def _pair_stress(x, v, pi, pj, rij, A, B, k, kappa, m, S):
         if d <= 0.0:
             continue
         fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], rij, A, invB,
-                            k, kappa)
+                            k, kappa, rij)
         fx /= 2.0 * m
         fy /= 2.0 * m
         for a in (i, j):

@@ -89,7 +89,9 @@ _PAPER_VALUES = {
 UNITS = {"speed_law": "", "U_f": "m/s", "beta": "m^2/ped", "rho_jam": "ped/m^2",
          "gamma_w": "ped/m^2", "rho_shift": "ped/m^2", "density_self": "0/1", "tau": "s",
          "m": "kg", "r": "m", "R": "m", "A": "N", "B": "m", "k": "kg/s^2",
-         "kappa": "kg/(m s)", "calibration": "", "speed_table": "ped/m^2 : -"}
+         "kappa": "kg/(m s)", "calibration": "", "speed_table": "ped/m^2 : -",
+         "shrink": "m", "t_space": "s", "vision": "-", "crowd_stretch": "-",
+         "crowd_knee": "ped/m^2", "queue_width": "m", "crowd_width": "m"}
 DATA = Path(__file__).resolve().parent / "data"
 FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
        "(benchmarks/fit_validated.py -> pedmesh/data/validated.json)")
@@ -112,9 +114,16 @@ def _validated() -> "Preset | None":
         if k in fitted:
             src = FIT + ("; U_e/U_f at the kernel density without one's own share"
                          if k == "speed_table" else "")
+        elif k == "speed_table" and k in fit.get("carried", {}):
+            src = (FIT + " (--law table); U_e/U_f at the kernel density without one's own "
+                   "share, kept when the dense-crowd terms were fitted")
         elif k in fit.get("carried", {}):
             src = ("fitted with Weidmann's law to the same data (benchmarks/fit_validated.py "
                    "--law weidmann), kept when the law was fitted as a table")
+        elif k in ("crowd_knee", "crowd_width"):
+            src = ("pedmesh.micro.crowding: the table's last knot before its jam point"
+                   if k == "crowd_knee" else
+                   "Adrian et al. 2020: crowding from corridors 2.3 m wide on")
         elif k == "speed_law" and v == "table":
             src = "pedmesh: U_e = U_f g(rho), g piecewise linear through speed_table's points"
         elif k == "U_f":

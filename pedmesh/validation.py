@@ -117,6 +117,37 @@ WEIDMANN_JAM_DENSITY_PER_M2 = 5.4
 #: specific flow [1/(m s)] through bottlenecks of width 0.8-2.5 m (Seyfried et al. 2009,
 #: Liddle et al. 2011)
 SPECIFIC_BOTTLENECK_FLOW_PER_MS = 1.9
+#: published points within this fraction of a width (at least BAND_MIN_TOLERANCE_M) count
+#: for that width's band
+BAND_WIDTH_TOLERANCE = 0.12
+BAND_MIN_TOLERANCE_M = 0.1
+#: [1/m^2] the densities in front of entrances that pressing crowds reach (Adrian, Seyfried
+#: & Sieben 2020: 6-9 /m^2)
+PRESSING_FRONT_DENSITY_PER_M2 = (6.0, 9.0)
+
+
+def published_bottleneck_flows() -> list[dict[str, Any]]:
+    """The published bottleneck series (``pedmesh/data/bottleneck_literature.json``): a list
+    of {key, label, source, points: (k, 2) array of width [m], flow J [1/s]}. For
+    validation only: nothing is fitted to them."""
+    import json
+
+    data = json.loads((Path(__file__).resolve().parent / "data"
+                       / "bottleneck_literature.json").read_text())
+    return [{**s, "points": np.asarray(s["points"], float)} for s in data["series"]]
+
+
+def published_band(width_m: float) -> tuple[float, float, int]:
+    """(lowest, highest) published specific flow J/b [1/(m s)] of the points of
+    :func:`published_bottleneck_flows` whose width is within ``BAND_WIDTH_TOLERANCE`` of
+    ``width_m`` [m] (at least ``BAND_MIN_TOLERANCE_M``), and how many points there are
+    ((nan, nan, 0) if none)."""
+    tol = max(BAND_MIN_TOLERANCE_M, BAND_WIDTH_TOLERANCE * width_m) + 1e-12
+    jb = [float(J / b) for s in published_bottleneck_flows() for b, J in s["points"]
+          if abs(b - width_m) <= tol]
+    return (min(jb), max(jb), len(jb)) if jb else (math.nan, math.nan, 0)
+
+
 #: free walking speed [m/s]: mean and standard deviation (Weidmann 1993)
 FREE_SPEED_MS = 1.34
 FREE_SPEED_SD_MS = 0.26

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..eikonal.direction import _inside_packed, _interpolate
 from ..speed import shape
+from .crowding import crowd_factors
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
 #: barycentric margin of the division-free "still inside its triangle" test; anything
@@ -128,16 +129,18 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
 
 
 @nb.njit(cache=True, inline="always")
-def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa):
+def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij):
     """Force [N] on pedestrian i from j: ``dx, dy`` = x_i - x_j at distance ``d`` > 0 and
-    ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((r_ij - d)/B) and the body force
+    ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((s_ij - d)/B) and the body force
     k (r_ij - d)_+ along n_ij, and the sliding friction kappa (r_ij - d)_+ <v_j - v_i, t_ij>
-    t_ij with t_ij = (-n_y, n_x). The one definition used for pairs, walls (a resting
-    partner at the contact point) and the calibration."""
+    t_ij with t_ij = (-n_y, n_x). ``rij`` is the sum of the body radii [m], ``sij`` that of
+    the social radii [m] (the space the two keep, :func:`social_radii`; ``sij = rij`` in the
+    paper's model). The one definition used for pairs, walls (a resting partner at the
+    contact point) and the calibration."""
     nx_ = dx / d
     ny_ = dy / d
     ov = rij - d
-    f = A * math.exp(ov * invB)
+    f = A * math.exp((sij - d) * invB)
     fx = f * nx_
     fy = f * ny_
     if ov > 0.0:
@@ -153,14 +156,15 @@ def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa):
 
 @nb.njit(cache=True)
 def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m, R, F,
-                    rho, with_density=True):
+                    rho, with_density, rs, lam, e):
     """Pair accelerations (into ``F``, zeroed first) and Gaussian kernel densities over a
     pair list from :func:`build_pairs` (a superset of the pairs in range).
 
     ``rho[i] = sum_j w(|x_i - x_j|)`` over all j including i itself (paper eq3, eq4),
     truncated at ``rc_d``; the pair force (social repulsion, body force and sliding
     friction, divided by m; r_ij = ``rad[i] + rad[j]``, the body radii [m]) is truncated at
-    ``rc_f`` and must vanish for every far pair
+    ``rc_f`` and must vanish for every far pair; ``rs``: the social radii [m]
+    (:func:`social_radii`; ``rad`` itself in the paper's model)
     (``build_pairs`` guarantees it when its ``rc_near`` covers ``rc_f`` plus the motion
     since the list was built). Each pair's force is added to one pedestrian and subtracted
     from the other, so Newton's third law holds to round-off. With ``with_density`` false,
@@ -189,8 +193,25 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
             rho[i] += w
             rho[j] += w
         if d2 < rc_f2 and d2 > 0.0:
+            rij = rad[i] + rad[j]
+            sij = rs[i] + rs[j]
+            if lam < 1.0:  # the social repulsion weighted by each one's field of vision
+                d = math.sqrt(d2)
+                fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
+                                    rij, 0.0, invB, k, kappa, sij)
+                fs = A * math.exp((sij - d) * invB) / d
+                # cos of the angle between one's direction and the other: -n_ij e_i, n_ij e_j
+                ci = -(dx * e[i, 0] + dy * e[i, 1]) / d
+                cj = (dx * e[j, 0] + dy * e[j, 1]) / d
+                wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
+                wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
+                F[i, 0] += (fx + wi * fs * dx) * inv_m
+                F[i, 1] += (fy + wi * fs * dy) * inv_m
+                F[j, 0] -= (fx + wj * fs * dx) * inv_m
+                F[j, 1] -= (fy + wj * fs * dy) * inv_m
+                continue
             fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
-                                rad[i] + rad[j], A, invB, k, kappa)
+                                rij, A, invB, k, kappa, sij)
             fx *= inv_m
             fy *= inv_m
             F[i, 0] += fx
@@ -210,6 +231,50 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
             w = w0 * math.exp(-d2 * invR2)
             rho[i] += w
             rho[j] += w
+
+
+# ------------------------------------------------------------------ space requirement
+@nb.njit(cache=True)
+def social_radii(n, rad, ue, shrink, t_space, crowd, cf, rs):
+    """The social radii [m] of the speed-dependent space requirement into ``rs``:
+    ``min(rad_i, rad_i - shrink + t_space ue_i / 2)`` with ``ue_i`` the desired speed [m/s]
+    of pedestrian i. A person who wants to stand keeps a radius ``shrink`` [m] smaller than
+    their body radius ``rad_i`` [m], and it grows by ``t_space`` / 2 [s] per m/s of desired
+    speed back to ``rad_i`` (Seyfried et al. 2005: the length a walker needs grows linearly
+    with speed, 0.36 m + 1.06 s x v). The desired speed, not the velocity: a radius that
+    follows the velocity feeds a moving person's repulsion back into their motion, and a
+    pressed crowd then never comes to rest (docs/validation/dense_crowds.md). The social
+    repulsion acts from the sum of two social radii, the body (contact) forces from the sum
+    of the body radii. With ``crowd``, the shrink is ``shrink cf[i]``: a queueing person
+    (crowding factor 0) keeps their space, a crowding one (1) gives up ``shrink``."""
+    h = 0.5 * t_space
+    for i in range(n):
+        s = rad[i] - (shrink * cf[i] if crowd else shrink) + h * ue[i]
+        rs[i] = s if s < rad[i] else rad[i]
+
+
+@nb.njit(cache=True, inline="always")
+def crowd_density(rho, c, knee, stretch):
+    """The density [ped/m^2] at which the speed law is read for a pedestrian with crowding
+    factor ``c`` (:mod:`pedmesh.micro.crowding`): above ``knee`` the law's dense part is
+    stretched by ``1 + c (stretch - 1)``, so a crowding person (c = 1) still wants to move
+    at densities where a queueing one (c = 0) stands."""
+    if rho <= knee:
+        return rho
+    return knee + (rho - knee) / (1.0 + c * (stretch - 1.0))
+
+
+@nb.njit(cache=True)
+def desired_speeds(n, u0, law, rho, const_speed, crowd, cf, knee, stretch, ue):
+    """Desired speeds [m/s] into ``ue``: ``u0[i] g(rho[i])`` (the density read through
+    :func:`crowd_density` if ``crowd``), or ``const_speed`` if that is >= 0."""
+    for i in range(n):
+        if const_speed >= 0.0:
+            ue[i] = const_speed
+        elif crowd:
+            ue[i] = u0[i] * shape(law, crowd_density(rho[i], cf[i], knee, stretch))
+        else:
+            ue[i] = u0[i] * shape(law, rho[i])
 
 
 # ------------------------------------------------------------------ walls
@@ -254,9 +319,9 @@ def wall_contact(px, py, s, piece, next_seg):
 
 @nb.njit(cache=True)
 def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
-               cell_seg, rc_w, rad, A, B, k, kappa, m, F):
+               cell_seg, rc_w, rad, A, B, k, kappa, m, F, rs):
     """Add the wall accelerations of every pedestrian to ``F`` (cut-off ``rc_w`` [m]; body
-    radii ``rad`` [m])."""
+    radii ``rad`` [m], social radii ``rs`` [m])."""
     rc2 = rc_w * rc_w
     invB = 1.0 / B
     inv_m = 1.0 / m
@@ -279,7 +344,7 @@ def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
             # the pair force with a resting partner of radius 0 at the contact point q:
             # friction against the wall is -kappa (r_i - d) <v_i, t> t
             fx, fy = pair_force(dx, dy, math.sqrt(d2), -v[i, 0], -v[i, 1], rad[i], A, invB,
-                                k, kappa)
+                                k, kappa, rs[i])
             F[i, 0] += fx * inv_m
             F[i, 1] += fy * inv_m
 
@@ -357,17 +422,35 @@ def follow(points, triangles, nbr, tri, x, n, P):
 def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
-          const_u, use_const, F, rho, e, with_density, toff, tbuf):
+          const_u, use_const, F, rho, e, with_density, toff, tbuf, space, rs, wmap, wgeo,
+          cf, ue):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
     desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
     else as they are). Per pedestrian i: body radius ``rad[i]`` [m], free speed ``u0[i]``
     [m/s] (0 before its premovement time), U_e = u0[i] g(rho) with g the speed law array
     ``law`` (:mod:`pedmesh.speed`), and its route: row ``tri[i] + toff[i]`` of the stacked
-    direction tables ``dpack`` (one table per target group; ``tbuf`` (n,) work)."""
+    direction tables ``dpack`` (one table per target group; ``tbuf`` (n,) work). ``space``
+    = (shrink [m], t_space [s]) of the speed-dependent space requirement
+    (:func:`social_radii` of the desired speeds at the densities ``rho`` as they are when
+    the forces start, into the work array ``rs``); shrink 0: the social radii are the body
+    radii (the paper's model). ``space[2]``: the field of vision (lambda, 1: isotropic);
+    ``space[3]``, ``space[4]``: the crowding stretch and knee [ped/m^2] of
+    :func:`crowd_density` (stretch 1: off), with the free-width map ``wmap`` and ``wgeo`` =
+    (x0, y0, 1/cell, queue width, crowd width) (:mod:`pedmesh.micro.crowding`; work arrays
+    ``cf``, ``ue``)."""
+    crowd = space[3] > 1.0
+    if crowd:
+        crowd_factors(x, n, wmap, wgeo[0], wgeo[1], wgeo[2], wgeo[3], wgeo[4], cf)
+    soc = rad
+    if space[0] > 0.0:
+        cs = math.sqrt(const_u[0] * const_u[0] + const_u[1] * const_u[1]) if use_const else -1.0
+        desired_speeds(n, u0, law, rho, cs, crowd, cf, space[4], space[3], ue)
+        social_radii(n, rad, ue, space[0], space[1], crowd, cf, rs)
+        soc = rs
     pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m,
-                    R, F, rho, with_density)
+                    R, F, rho, with_density, soc, space[2], e)
     wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-               rc_w, rad, A, B, k, kappa, m, F)
+               rc_w, rad, A, B, k, kappa, m, F, soc)
     inv_tau = 1.0 / tau
     if use_const:
         for i in range(n):
@@ -379,7 +462,10 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
         tbuf[i] = tri[i] + toff[i] if tri[i] >= 0 else -1
     _interpolate(dpack, tbuf[:n], x[:n], e)
     for i in range(n):
-        ue = u0[i] * shape(law, rho[i])
+        if crowd:
+            ue = u0[i] * shape(law, crowd_density(rho[i], cf[i], space[4], space[3]))
+        else:
+            ue = u0[i] * shape(law, rho[i])
         F[i, 0] += (ue * e[i, 0] - v[i, 0]) * inv_tau
         F[i, 1] += (ue * e[i, 1] - v[i, 1]) * inv_tau
 
@@ -479,7 +565,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
              const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages,
-             toff, tbuf):
+             toff, tbuf, space, rs, wmap, wgeo, cf, ue):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
@@ -502,7 +588,8 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
-          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf)
+          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
+          wgeo, cf, ue)
     for i in range(n):
         rho_out[i] = rho[i]
         for d in range(2):
@@ -516,7 +603,8 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
-          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf)
+          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
+          wgeo, cf, ue)
     for i in range(n):
         for d in range(2):
             x1 = xs[i, d]
@@ -531,7 +619,8 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
-          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf)
+          m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
+          wgeo, cf, ue)
     for i in range(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])

@@ -43,9 +43,47 @@ class SocialForceParams:
     #: paper (eq3: a lone walker feels 1/(pi R^2) = 0.65 /m^2); 0: without it (a lone
     #: walker walks at U_f)
     density_self: float = 1.0
+    #: [m] speed-dependent space requirement: a person whose desired speed is 0 keeps a
+    #: social radius this much smaller than the body radius r (0: off, the paper's model);
+    #: the social repulsion acts from the sum of two social radii, body contact from the
+    #: body radii
+    shrink: float = 0.0
+    #: [s] the social radius grows by t_space/2 per m/s of the desired speed U_e, back to r
+    #: (Seyfried et al. 2005: a walker needs 0.36 m + 1.06 s x v)
+    t_space: float = 1.06
+    #: [-] field of vision (Helbing's lambda): the social repulsion of someone straight
+    #: behind counts this much, of someone straight ahead fully, (1 + lambda)/2 beside (1:
+    #: isotropic, the paper's model); body contact is always isotropic
+    vision: float = 1.0
+    #: [-] queueing or crowding (:mod:`pedmesh.micro.crowding`): for a pedestrian in a space
+    #: at least 2.3 m wide (crowding), the speed law's part above ``crowd_knee`` is read at
+    #: densities this many times lower, so a crowd presses on where a queue (in a corridor
+    #: 1.2 m wide or less) stands; in between, in proportion (1: off, the paper's model)
+    crowd_stretch: float = 1.0
+    #: [ped/m^2] the density above which crowding stretches the speed law
+    crowd_knee: float = 2.7
+    #: [m] free widths up to this queue (crowding factor 0; Adrian et al. 2020: the change
+    #: from queueing to crowding lies between corridors 1.2 and 2.3 m wide)
+    queue_width: float = 1.2
+    #: [m] free widths from this on crowd (crowding factor 1)
+    crowd_width: float = 2.3
 
     def __post_init__(self) -> None:
-        _check_positive(self, skip=("speed_law", "density_self", "speed_table"))
+        _check_positive(self, skip=("speed_law", "density_self", "speed_table", "shrink",
+                                    "vision"))
+        if not (isinstance(self.vision, (int, float)) and not isinstance(self.vision, bool)
+                and 0.0 <= self.vision <= 1.0):
+            raise ParameterError(f"parameter 'vision' must be in [0, 1], got {self.vision!r}")
+        if not self.crowd_width > self.queue_width:
+            raise ParameterError(f"parameter 'crowd_width' ({self.crowd_width!r} m) must be "
+                                 f"larger than 'queue_width' ({self.queue_width!r} m)")
+        if not self.crowd_stretch >= 1.0:
+            raise ParameterError(f"parameter 'crowd_stretch' must be >= 1, got "
+                                 f"{self.crowd_stretch!r}")
+        if not (isinstance(self.shrink, (int, float)) and not isinstance(self.shrink, bool)
+                and 0.0 <= self.shrink < self.r):
+            raise ParameterError(f"parameter 'shrink' must be >= 0 and less than the body "
+                                 f"radius r = {self.r:g} m, got {self.shrink!r}")
         if self.density_self not in (0, 1) or isinstance(self.density_self, bool):
             raise ParameterError(f"parameter 'density_self' must be 0 or 1, got "
                                  f"{self.density_self!r}")

@@ -168,7 +168,7 @@ class Simulation:
         self._vs = np.empty_like(x)
         self._F = np.empty_like(x)
         self._rho_w = np.empty(N)
-        self._e = np.empty_like(x)
+        self._e = np.zeros_like(x)  # desired directions (of the last stage)
         self._exit_of = np.empty(N, np.int64)
         self._exit_frac = np.empty(N)
         self._pi = np.empty(max(32 * N, 1024), np.int64)
@@ -192,6 +192,26 @@ class Simulation:
         self._cell_start = np.zeros(self._cnx * self._cny + 1, np.int64)
         self._cell_order = np.zeros(N, np.int64)
         self.walls = WallSet.from_mesh(mesh, self.rc_w)
+        # the speed-dependent space requirement (shrink [m], t_space [s]; shrink 0: off)
+        self._space = np.array([p.shrink, p.t_space, p.vision, p.crowd_stretch, p.crowd_knee],
+                               np.float64)
+        self._rs = np.empty(N)
+        self._cf = np.zeros(N)
+        self._ue = np.empty(N)
+        self.width_map = None  # the free width of queueing or crowding (crowd_stretch > 1)
+        self._wmap, self._wgeo = np.zeros((1, 1)), np.zeros(5)
+        if p.crowd_stretch > 1.0:
+            from .crowding import width_map
+
+            if mesh.room is None:
+                raise SimulationError("crowd_stretch > 1 needs the mesh's room (its walls)")
+            self.width_map = width_map(mesh.room.walkable)
+            wm = self.width_map
+            self._wmap = wm.width
+            self._wgeo = np.array([wm.x0, wm.y0, 1.0 / wm.cell, p.queue_width, p.crowd_width])
+        if p.shrink > 0 and p.shrink >= float(self.rad.min()):
+            raise SimulationError(f"parameter 'shrink' ({p.shrink:g} m) must be less than every "
+                                  f"body radius (smallest {float(self.rad.min()):g} m)")
         self._law = self.params.speed.array  # the desired-speed law (pedmesh.speed)
         if not p.density_self:  # U_e of the density around a pedestrian, without its own
             self._law[4] = 1.0 / (math.pi * p.R * p.R)
@@ -347,6 +367,7 @@ class Simulation:
                 self.rho[n] = rho
                 self.n = n + 1
                 e = self._directions(n, n + 1)[0]
+                self._e[n] = e
                 self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
                 self.n_waiting -= 1
 
@@ -421,7 +442,8 @@ class Simulation:
             self.rad, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, self._u_eff, self._law,
             self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
             self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
-            self.toff, self._tbuf,
+            self.toff, self._tbuf, self._space, self._rs, self._wmap, self._wgeo, self._cf,
+            self._ue,
         )
 
     def step(self) -> int:
@@ -474,7 +496,8 @@ class Simulation:
             self.exit_point[ids] = self.x[:n][gone]
             keep = np.flatnonzero(~gone)
             m = len(keep)
-            for arr in (self.x, self.v, self.rad, self.u0, self._u_eff, self.tpre, self.toff):
+            for arr in (self.x, self.v, self.rad, self.u0, self._u_eff, self.tpre, self.toff,
+                        self._e):
                 arr[:m] = arr[keep]
             self.ids[:m] = self.ids[keep]
             self.tri[:m] = self.tri[keep]

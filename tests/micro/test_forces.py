@@ -61,8 +61,10 @@ def kernel_pairs(x, v, rc_f, rc_d, p=P, skin=0.0, x_list=None, density_in_build=
                                   rho, rc_d, p.R, density_in_build)
     assert n_near > 0 and (n_far == 0) == density_in_build
     F = np.zeros((n, 2))
-    K.pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, np.full(n, p.r), p.A, p.B, p.k,
-                      p.kappa, p.m, p.R, F, rho, not density_in_build)
+    rad = np.full(n, p.r)
+    K.pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, p.A, p.B, p.k,
+                      p.kappa, p.m, p.R, F, rho, not density_in_build, rad, 1.0,
+                      np.zeros((n, 2)))
     return F, rho
 
 
@@ -179,7 +181,8 @@ def test_wall_forces_match_direct_formula(seed):
     F = np.zeros_like(x)
     K.wall_accel(x, v, len(x), walls.piece, walls.next_seg, walls.x0,
                  walls.y0, walls.inv_cell, walls.nx, walls.ny, walls.cell_ptr, walls.cell_seg,
-                 rc_w, np.full(len(x), P.r), P.A, P.B, P.k, P.kappa, P.m, F)
+                 rc_w, np.full(len(x), P.r), P.A, P.B, P.k, P.kappa, P.m, F,
+                 np.full(len(x), P.r))
     Fd = direct_walls(x, v, room, rc_w)
     assert np.abs(F - Fd).max() <= 1e-9 * max(np.abs(Fd).max(), 1.0)
     assert np.abs(Fd).max() > 100  # some pedestrians are pressed into a wall
@@ -190,7 +193,7 @@ def test_wall_forces_match_direct_formula(seed):
     K.wall_accel(xs, np.zeros_like(xs), len(xs), walls.piece, walls.next_seg, walls.x0, walls.y0,
                  walls.inv_cell, walls.nx, walls.ny,
                  walls.cell_ptr, walls.cell_seg, rc_w, np.full(len(xs), P.r), P.A, P.B, P.k,
-                 P.kappa, P.m, Fs)
+                 P.kappa, P.m, Fs, np.full(len(xs), P.r))
     one_wall = (P.A * math.exp((P.r - 0.1) / P.B) + P.k * (P.r - 0.1)) / P.m
     far = (xs[:, 0] > 1.2) & (xs[:, 0] < 10.8) & ~((xs[:, 0] > 0.8) & (xs[:, 0] < 4.7))
     np.testing.assert_allclose(Fs[far, 1], one_wall, rtol=1e-12)
