@@ -9,7 +9,7 @@ fundamental diagram, the continuum models take as their law ``U_e(rho) = U_f g(r
 speed the social force model actually walks at the density rho, measured by
 :func:`pedmesh.calibration.measure_fundamental_diagram` (its protocol,
 ``pedmesh.calibration.FD_PROTOCOL``: a 40 x 10 m corridor filled over 30 m at the start
-densities 0.25 ... 5.5 /m^2, ``--seeds`` realisations each, the density and speed in a box
+densities 0.25 ... 9 /m^2, ``--seeds`` realisations each, the density and speed in a box
 2 m from the walls at t 3-6 s) and made a table by ``fd_speed_table`` (the seeds' means,
 never faster when denser, 0:1 in front, a jam point extrapolated from the last two).
 

@@ -8,8 +8,11 @@
    SocialForceModel (same parameters, dt 0.01, forward Euler, no rerouting) in the same
    run, and the ratio of wall times.
 4. Cost per agent-step from 2.4k to 100k agents in a large hall.
+5. ``--dense-ab`` (alone): the cost per step of the dense-crowd terms (space requirement,
+   crowding) under the validated preset, A/B against the same preset without them,
+   interleaved (goal: at most 1.2 x).
 
-    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling]
+    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling] [--dense-ab]
 
 Goals (issue 4): <= 1.5 ms per step with 2400 agents including density and rerouting;
 Example 2 end to end <= 0.25 x JuPedSim's wall time; cost per agent-step flat within 1.3x
@@ -188,7 +191,53 @@ def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100, rounds=5):
     return out
 
 
-def main(skip_jupedsim: bool = False, skip_scaling: bool = False) -> None:
+#: the dense-crowd terms of the social force model, off (the table fit's values)
+DENSE_OFF = {"shrink": 0.0, "crowd_stretch": 1.0, "vision": 1.0}
+
+
+def dense_terms_ab(steps: int = 300, repeats: int = 5, preset: str = "validated"):
+    """Cost per step of Example 2 (the first ``steps`` steps: everyone in the room) under
+    ``preset`` with its dense-crowd terms (space requirement, crowding) and with them off
+    (:data:`DENSE_OFF`), interleaved A/B ``repeats`` times. Returns the per-step times [s]
+    of each (lists) and the terms' values."""
+    from pedmesh.micro import SFMNumerics, SocialForceParams
+    from pedmesh.presets import preset_overrides
+    from pedmesh.run.models import model_parameters
+
+    room = load_room(ROOT / "geometries" / "example2.json")
+    mesh = room.mesh()
+    names = {f.name for f in SocialForceParams.__dataclass_fields__.values()}
+    vals = {k: v for k, v in preset_overrides(preset, model_parameters("sfm")).items()
+            if k in names}
+    on = SocialForceParams(**vals)
+    off = SocialForceParams(**{**vals, **DENSE_OFF})
+    times = {"on": [], "off": []}
+    for _ in range(repeats):
+        for key, p in (("on", on), ("off", off)):
+            sim = Simulation(mesh, params=p, numerics=SFMNumerics())
+            sim.step()  # (compiled code loaded)
+            t = time.perf_counter()
+            for _ in range(steps):
+                sim.step()
+            times[key].append((time.perf_counter() - t) / steps)
+    return times, {k: vals.get(k) for k in DENSE_OFF}
+
+
+def main(skip_jupedsim: bool = False, skip_scaling: bool = False,
+         dense_ab: bool = False) -> None:
+    if dense_ab:
+        times, terms = dense_terms_ab()
+        on, off = np.array(times["on"]), np.array(times["off"])
+        print(f"Example 2 under validated, the first 300 steps, 5 interleaved A/B repeats; "
+              f"dense-crowd terms {terms}")
+        print(f"  with the terms:    median {1e3 * np.median(on):.3f} ms/step, best "
+              f"{1e3 * on.min():.3f}")
+        print(f"  without (off):     median {1e3 * np.median(off):.3f} ms/step, best "
+              f"{1e3 * off.min():.3f}")
+        r_med, r_best = np.median(on) / np.median(off), on.min() / off.min()
+        print(f"  ratio with/without: median {r_med:.3f}, best {r_best:.3f} (goal <= 1.20: "
+              f"{'met' if max(r_med, r_best) <= 1.2 else 'NOT met'})")
+        return
     room, mesh, e2 = example2_end_to_end()
     print(f"Example 2 (N = 2400, mesh {mesh.n_points} vertices / {mesh.n_triangles} triangles)")
     print(f"  pedmesh sfm: {e2['wall']:.1f} s wall for {e2['steps']} steps "
@@ -237,5 +286,7 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--skip-jupedsim", action="store_true")
     ap.add_argument("--skip-scaling", action="store_true")
+    ap.add_argument("--dense-ab", action="store_true",
+                    help="only the cost of the dense-crowd terms (A/B on Example 2)")
     a = ap.parse_args()
-    main(a.skip_jupedsim, a.skip_scaling)
+    main(a.skip_jupedsim, a.skip_scaling, a.dense_ab)

@@ -40,7 +40,8 @@ __all__ = ["CalibrationOptions", "measure_pressure", "calibrate", "fit_eos", "lo
            "flowing_stress", "eos_pressure", "DEFAULT_EOS", "EOS_FORMAT",
            "measure_fundamental_diagram", "fd_speed_table", "fd_corridor", "FD_PROTOCOL"]
 
-_SFM_KEYS = ("m", "A", "B", "r", "k", "kappa")
+_SFM_KEYS = ("m", "A", "B", "r", "k", "kappa", "shrink", "t_space", "crowd_stretch",
+             "crowd_knee")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -79,9 +80,10 @@ class CalibrationOptions:
 
 # ------------------------------------------------------------------ kernels
 @nb.njit(cache=True)
-def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F):
+def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F, sij):
     """Pair accelerations in a periodic Lx x Ly box (minimum image) into F; returns
-    sum_{i<j} r_ij . f_ij / m (the virial sum per unit mass)."""
+    sum_{i<j} r_ij . f_ij / m (the virial sum per unit mass). ``rij``, ``sij``: the sums of
+    two body and two social radii [m] (:func:`standing_social_rij`)."""
     n = x.shape[0]
     invB = 1.0 / B
     inv_m = 1.0 / m
@@ -130,7 +132,7 @@ def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F):
                         if d2 < rc2 and d2 > 0.0:
                             fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0],
                                                 v[j, 1] - v[i, 1], rij, A, invB, k, kappa,
-                                                rij)
+                                                sij)
                             fx *= inv_m
                             fy *= inv_m
                             F[i, 0] += fx
@@ -143,7 +145,7 @@ def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F):
 
 @nb.njit(cache=True)
 def _run_box(x, v, L, nc, rc, rij, A, B, k, kappa, m, tau, dt, n_relax, n_sample, every,
-             noise, seed, out_vir, out_kin):
+             noise, seed, out_vir, out_kin, sij):
     """SSP-RK3 dynamics of a standing crowd in a periodic box; records the virial and the
     kinetic sums every ``every`` steps of the sampling phase."""
     np.random.seed(seed)
@@ -154,19 +156,19 @@ def _run_box(x, v, L, nc, rc, rij, A, B, k, kappa, m, tau, dt, n_relax, n_sample
     s = 0
     kick = noise * math.sqrt(dt)
     for step in range(n_relax + n_sample):
-        _periodic_forces(x, v, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F)
+        _periodic_forces(x, v, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F, sij)
         for i in range(n):
             for d in range(2):
                 x1[i, d] = x[i, d] + dt * v[i, d]
                 v1[i, d] = v[i, d] + dt * (F[i, d] - v[i, d] / tau)
-        _periodic_forces(x1, v1, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F)
+        _periodic_forces(x1, v1, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F, sij)
         for i in range(n):
             for d in range(2):
                 xa = x1[i, d]
                 va = v1[i, d]
                 x1[i, d] = 0.75 * x[i, d] + 0.25 * (xa + dt * va)
                 v1[i, d] = 0.75 * v[i, d] + 0.25 * (va + dt * (F[i, d] - va / tau))
-        _periodic_forces(x1, v1, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F)
+        _periodic_forces(x1, v1, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F, sij)
         for i in range(n):
             for d in range(2):
                 x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (x1[i, d] + dt * v1[i, d])
@@ -175,13 +177,56 @@ def _run_box(x, v, L, nc, rc, rij, A, B, k, kappa, m, tau, dt, n_relax, n_sample
                     v[i, d] += kick * np.random.standard_normal()
                 x[i, d] = x[i, d] % L
         if step >= n_relax and (step - n_relax) % every == 0 and s < out_vir.shape[0]:
-            out_vir[s] = _periodic_forces(x, v, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F)
+            out_vir[s] = _periodic_forces(x, v, L, L, nc, nc, rc, rij, A, B, k, kappa, m, F, sij)
             kin = 0.0
             for i in range(n):
                 kin += v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1]
             out_kin[s] = kin
             s += 1
     return s
+
+
+def standing_social_rij(p: SocialForceParams) -> float:
+    """The sum of two social radii [m] of people who want to stand (desired speed 0, in the
+    open: crowding factor 1, :mod:`pedmesh.micro.crowding`): ``2 (r - shrink)``; ``2 r``
+    in the paper's model."""
+    return 2.0 * (p.r - p.shrink) if p.shrink > 0 else 2.0 * p.r
+
+
+def crowd_social_rij(p: SocialForceParams, x: np.ndarray, L: float) -> float:
+    """The sum of two social radii [m] in a crowd at the positions ``x`` of a periodic box
+    of side ``L`` [m], as the social force model gives them: each person's radius
+    ``min(r, r - shrink + t_space U_e / 2)`` at the desired speed U_e the model's speed
+    law wants at the crowd's mean kernel density (in the open: crowding factor 1), so the
+    equation of state is measured with the space the model's people keep at that density
+    (a standing box whose radii were those of people who want to stand would push far
+    less than the model's crowds do). ``2 r`` in the paper's model."""
+    if p.shrink <= 0:
+        return 2.0 * p.r
+    from scipy.spatial import cKDTree
+
+    R = p.R
+    w0 = 1.0 / (math.pi * R * R)
+    tree = cKDTree(np.asarray(x, float) % L, boxsize=L)
+    pairs = tree.query_pairs(min(3.0 * R, 0.499 * L), output_type="ndarray")
+    d = np.linalg.norm(((x[pairs[:, 0]] - x[pairs[:, 1]]) + 0.5 * L) % L - 0.5 * L, axis=1)
+    rho_k = 2.0 * w0 * np.exp(-(d / R) ** 2).sum() / len(x)  # without one's own share
+    if p.density_self:
+        rho_k += w0
+    if p.crowd_stretch > 1.0 and rho_k > p.crowd_knee:
+        rho_k = p.crowd_knee + (rho_k - p.crowd_knee) / p.crowd_stretch
+    ue = float(p.speed(rho_k)) if p.density_self else float(
+        p.U_f * _shape_without_own_share(p, rho_k))
+    return 2.0 * min(p.r, p.r - p.shrink + 0.5 * p.t_space * ue)
+
+
+def _shape_without_own_share(p: SocialForceParams, rho_k: float) -> float:
+    """g(rho_k) of the speed law at a kernel density without one's own share (the social
+    force model's ``density_self=0``)."""
+    from .speed import shape
+
+    law = p.speed.array
+    return float(shape(law, rho_k))
 
 
 def periodic_virial(x: np.ndarray, L, params: SocialForceParams | None = None,
@@ -198,7 +243,7 @@ def periodic_virial(x: np.ndarray, L, params: SocialForceParams | None = None,
         raise ParameterError("the periodic box must be at least 3 cut-offs wide")
     F = np.empty_like(x)
     vir = _periodic_forces(x, v, Lx, Ly, ncx, ncy, cutoff, 2 * p.r, p.A, p.B, p.k, p.kappa,
-                           p.m, F)
+                           p.m, F, standing_social_rij(p))
     return vir / (2.0 * Lx * Ly)
 
 
@@ -217,7 +262,8 @@ def lattice_virial(rho: float, params: SocialForceParams | None = None, cutoff: 
             ry = a * (math.sqrt(3.0) / 2.0) * j
             d = math.hypot(rx, ry)
             if d < cutoff:
-                f = p.A * math.exp((2 * p.r - d) / p.B) + p.k * max(2 * p.r - d, 0.0)
+                f = (p.A * math.exp((standing_social_rij(p) - d) / p.B)
+                     + p.k * max(2 * p.r - d, 0.0))
                 tot += d * f / p.m
     return rho / 4.0 * tot
 
@@ -264,7 +310,8 @@ def measure_pressure(rho: float, params: SocialForceParams | None = None,
         ov = np.zeros(n_sample // every + 1)
         ok = np.zeros_like(ov)
         s = _run_box(x, v, L, nc, o.cutoff, 2 * p.r, p.A, p.B, p.k, p.kappa, p.m, p.tau, o.dt,
-                     n_relax, n_sample, every, o.noise, int(rng.integers(2**31)), ov, ok)
+                     n_relax, n_sample, every, o.noise, int(rng.integers(2**31)), ov, ok,
+                     crowd_social_rij(p, x, L))
         if not np.all(np.isfinite(x)) or not np.all(np.abs(v) < 10.0):
             raise PedmeshError(f"calibration at {rho} ped/m^2 blew up; try a smaller dt "
                                f"(now {o.dt} s)")
@@ -489,11 +536,13 @@ density [ped/m^2] and mean speed [m/s] (centred differences of the trajectories)
 people in the box FD_BOX (x in [12, 22] m, y in [2, 8] m: 2 m from the walls) over the
 frames t in FD_WINDOW ([3, 6] s: after the acceleration, before the rarefaction from the
 crowd's front at x = 30 m reaches the box)."""
-FD_DENSITIES = (0.25, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5)  # [ped/m^2]
+#: [ped/m^2] start densities, up to a pressing crowd's (Adrian et al. 2020: 6-9 /m^2)
+FD_DENSITIES = (0.25, 0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0, 7.0, 8.0,
+                9.0)
 FD_LENGTH, FD_WIDTH, FD_FILLED = 40.0, 10.0, 30.0  # [m]
 FD_BOX = (12.0, 2.0, 22.0, 8.0)  # [m] x0, y0, x1, y1
 FD_WINDOW = (3.0, 6.0)  # [s]
-FD_JAM_CAP = 8.0  # [ped/m^2] the jam point is never put beyond this
+FD_JAM_CAP = 12.0  # [ped/m^2] the jam point is never put beyond this
 FD_FPS = 10.0
 
 

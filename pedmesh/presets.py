@@ -16,8 +16,12 @@ model everything).
   (``speed_law=table``) in its kernel density without one's own share (``density_self=0``,
   free speed 1.34 m/s), fitted by ``benchmarks/fit_validated.py`` to the Juelich corridor
   runs (fed with the experiment's inflow), bottleneck flows and the fundamental diagram, with
-  ``tau`` and the repulsion strength ``A`` of its earlier fit of Weidmann's law
-  (``pedmesh/data/validated.json``; the table in ``docs/validation/fit.md``), Table 1
+  ``tau`` and the repulsion strength ``A`` of its earlier fit of Weidmann's law, and the
+  terms for crowds that press (a space requirement that shrinks with the desired speed,
+  queueing or crowding: ``shrink``, ``t_space``, ``crowd_stretch``, ``crowd_knee``,
+  ``queue_width``, ``crowd_width``) fitted by ``fit_validated.py --law crowd`` to both
+  entrances of the corridor runs, the published bottleneck flows and the densities in
+  front of entrances (``pedmesh/data/validated.json``; ``docs/validation/fit.md``), Table 1
   otherwise. The continuum models take the fitted SFM's own fundamental diagram, measured by
   ``benchmarks/continuum_law.py`` (``pedmesh/data/fd_validated.json``), as their table
   (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with these
@@ -120,10 +124,11 @@ def _validated() -> "Preset | None":
         elif k in fit.get("carried", {}):
             src = ("fitted with Weidmann's law to the same data (benchmarks/fit_validated.py "
                    "--law weidmann), kept when the law was fitted as a table")
-        elif k in ("crowd_knee", "crowd_width"):
-            src = ("pedmesh.micro.crowding: the table's last knot before its jam point"
-                   if k == "crowd_knee" else
-                   "Adrian et al. 2020: crowding from corridors 2.3 m wide on")
+        elif k == "crowd_width":
+            src = "Adrian et al. 2020: crowding from corridors 2.3 m wide on"
+        elif k == "t_space":
+            src = ("chosen by probes before the fit (benchmarks/fit_validated.py --law crowd; "
+                   "docs/validation/dense_crowds.md)")
         elif k == "speed_law" and v == "table":
             src = "pedmesh: U_e = U_f g(rho), g piecewise linear through speed_table's points"
         elif k == "U_f":

@@ -198,3 +198,61 @@ def test_missing_pedpy_names_the_extra(monkeypatch, tmp_path):
         V.load_experiment(tmp_path / "x.txt")
     with pytest.raises(ParameterError, match="needs PedPy"):
         V.passage_times(object(), ((0, 0), (1, 0)))
+
+
+def test_published_band():
+    """The band at a width holds the published points within 12 % of it (at least 0.1 m):
+    at 1.0 m Kretz 1.85, Seyfried 1.90, Daamen 2.65, Liddle 1.83 ... (J/b [1/(m s)])."""
+    series = V.published_bottleneck_flows()
+    assert {s["key"] for s in series} >= {"kretz2006", "seyfried2009", "liddle2011"}
+    for s in series:
+        assert s["points"].shape[1] == 2 and np.all(s["points"] > 0) and s["source"]
+    lo, hi, n = V.published_band(1.0)
+    pts = [J / b for s in series for b, J in s["points"] if abs(b - 1.0) <= 0.12 + 1e-12]
+    assert (lo, hi, n) == (min(pts), max(pts), len(pts))
+    assert lo == pytest.approx(1.58 / 0.9, rel=1e-9) and hi == pytest.approx(2.65, rel=1e-9)
+    assert V.published_band(12.0)[2] == 0 and math.isnan(V.published_band(12.0)[0])
+
+
+def _bottleneck(width_m: float, people: int = 120):
+    """A crowd waiting in an 8 x 6 m area in front of a 2.8 m long bottleneck."""
+    from pedmesh import Exit, MeasurementLine, Room, StartArea
+
+    xl, xr = 4.0 - width_m / 2, 4.0 + width_m / 2
+    return Room([(0, 0), (8, 0), (8, 6), (xr, 6), (xr, 8.8), (xl, 8.8), (xl, 6), (0, 6)],
+                exits=[Exit("exit", [(xl, 8.8), (xr, 8.8)])],
+                start_areas=[StartArea("crowd", [(0.2, 0.2), (7.8, 0.2), (7.8, 5.8),
+                                                 (0.2, 5.8)], count=people)],
+                measurement_lines=[MeasurementLine("middle", [(xl, 7.4), (xr, 7.4)])])
+
+
+def test_validated_crowd_presses_at_a_narrow_bottleneck(tmp_path):
+    """Regression of the validated preset at a 0.6 m bottleneck (issue 31): the crowd in
+    front packs above 5.5 /m^2 (Voronoi, 1 m in front, 0.5 m beyond each side), its
+    specific flow is inside the published band at that width, nobody stays stuck; with the
+    dense-crowd terms off the same crowd packs looser and passes less."""
+    pytest.importorskip("pedpy")
+    from pedmesh.presets import get_preset
+    from pedmesh.run import run_model
+
+    if get_preset("validated").values.get("crowd_stretch") is None:
+        pytest.skip("the validated preset has no dense-crowd terms")
+    b = 0.6
+    room = _bottleneck(b)
+    mesh = room.mesh(max_area=2.0, min_angle=30.0, feature_area=0.3)
+    setup = V.MeasurementSetup(walkable=room.walkable,
+                               lines={"middle": room.measurement_lines[0].polyline},
+                               area=((3.2, 5.0), (4.8, 5.0), (4.8, 6.0), (3.2, 6.0)),
+                               steady_line="middle")
+    out = {}
+    for name, ov in (("on", {}), ("off", {"shrink": 0.0, "crowd_stretch": 1.0})):
+        s = run_model(room, mesh, "sfm", overrides=ov, t_end=300.0, out_dir=tmp_path / name,
+                      quiet=True, preset="validated",
+                      model_options={"trajectory_rate": 10.0, "seed": 1})
+        assert s["status"] == "finished" and s["n_evacuated"] == 120
+        m = V.measure(V.load_run(tmp_path / name), setup)
+        out[name] = (m["flow"]["middle"] / b, m["density"])
+    lo, hi, _ = V.published_band(b)
+    assert lo <= out["on"][0] <= hi
+    assert out["on"][1] >= 5.5
+    assert out["off"][1] < out["on"][1] - 0.5 and out["off"][0] < out["on"][0]

@@ -61,7 +61,10 @@ def run(args: argparse.Namespace) -> int:
     from .._signals import stop_on_signals
 
     overrides = parse_param_overrides(args.param)
-    allowed = {"A", "B", "k", "kappa", "m", "r", "tau"}
+    # the pair forces, and what sets the social radii of the dense-crowd terms
+    allowed = {"A", "B", "k", "kappa", "m", "r", "tau", "shrink", "t_space", "crowd_stretch",
+               "crowd_knee", "U_f", "R", "speed_law", "speed_table", "density_self", "beta",
+               "rho_jam", "gamma_w"}
     bad = sorted(set(overrides) - allowed)
     if bad:
         raise ParameterError(f"unknown or irrelevant parameter '{bad[0]}' for a calibration "

@@ -259,7 +259,7 @@ def crowd_density(rho, c, knee, stretch):
     factor ``c`` (:mod:`pedmesh.micro.crowding`): above ``knee`` the law's dense part is
     stretched by ``1 + c (stretch - 1)``, so a crowding person (c = 1) still wants to move
     at densities where a queueing one (c = 0) stands."""
-    if rho <= knee:
+    if rho <= knee or c <= 0.0:
         return rho
     return knee + (rho - knee) / (1.0 + c * (stretch - 1.0))
 

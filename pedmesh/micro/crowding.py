@@ -71,7 +71,8 @@ def width_map(walkable, *, reach: float = WIDTH_REACH_M, cell: float = WIDTH_CEL
     gy = y0 + (np.arange(ny) + 0.5) * cell
     X, Y = np.meshgrid(gx, gy, indexing="ij")
     inside = shapely.contains_xy(walkable, X, Y)
-    dist = ndimage.distance_transform_edt(inside) * cell
+    # distance to the nearest cell centre outside, less half a cell: to the wall between
+    dist = np.maximum(ndimage.distance_transform_edt(inside) * cell - 0.5 * cell, 0.0)
     k = int(math.ceil(reach / cell))
     ii, jj = np.mgrid[-k:k + 1, -k:k + 1]
     disc = ii * ii + jj * jj <= k * k

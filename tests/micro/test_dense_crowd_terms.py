@@ -188,3 +188,94 @@ def test_vision_leaves_body_contact_isotropic():
 def test_bad_vision_is_a_clear_error(bad):
     with pytest.raises(ParameterError, match="parameter 'vision'"):
         SocialForceParams(vision=bad)
+
+
+# ----------------------------------------------------------------- queueing or crowding
+def test_free_width_is_a_corridors_width_and_wide_in_a_hall():
+    from shapely.geometry import Polygon
+
+    from pedmesh.micro.crowding import WIDTH_REACH_M, crowd_factors, width_map
+
+    # a 20 x 10 m hall with a 1.5 m wide, 6 m long corridor leaving it on the right
+    hall = Polygon([(0, 0), (20, 0), (20, 4.25), (26, 4.25), (26, 5.75), (20, 5.75),
+                    (20, 10), (0, 10)])
+    wm = width_map(hall)
+    corridor = np.column_stack([np.linspace(21.5, 25.5, 9), np.full(9, 5.0)])
+    assert np.allclose(wm.at(corridor), 1.5, atol=2 * wm.cell)
+    across = np.column_stack([np.full(5, 23.0), np.linspace(4.35, 5.65, 5)])
+    assert np.allclose(wm.at(across), 1.5, atol=2 * wm.cell)  # at its walls too
+    inner = np.array([[10.0, 5.0], [3.0, 3.0], [5.0, 0.2], [12.0, 9.8]])  # (not corners)
+    assert np.all(wm.at(inner) >= 2 * WIDTH_REACH_M - 2 * wm.cell)
+    c = np.empty(4)
+    pts = np.array([[23.0, 5.0], [10.0, 5.0], [23.0, 5.0], [10.0, 5.0]])
+    crowd_factors(pts, 2, wm.width, wm.x0, wm.y0, 1.0 / wm.cell, 1.2, 2.3, c)
+    assert c[0] == pytest.approx((1.5 - 1.2) / 1.1, abs=0.05) and c[1] == 1.0
+    crowd_factors(pts, 2, wm.width, wm.x0, wm.y0, 1.0 / wm.cell, 1.6, 2.3, c)
+    assert c[0] == 0.0  # narrower than the queue width: queueing
+
+
+def test_crowding_stretch_is_inert_where_everyone_queues():
+    """In a corridor narrower than queue_width every crowding factor is 0: the run is the
+    same, bit for bit, as without crowding; where people crowd, the stretched law lets
+    the dense part walk faster."""
+    room = Room([(0, 0), (30, 0), (30, 1.1), (0, 1.1)],
+                exits=[Exit("east", [(30, 0), (30, 1.1)])])
+    mesh = room.mesh(max_area=1.0)
+    x = np.column_stack([np.linspace(1.0, 8.0, 20), 0.55 + 0.2 * np.sin(np.arange(20))])
+    runs = []
+    for stretch in (1.0, 3.0):
+        p = SocialForceParams(speed_law="weidmann", U_f=1.34, crowd_stretch=stretch,
+                              crowd_knee=1.0)
+        sim = Simulation(mesh, x, params=p, numerics=SFMNumerics(dt=0.01))
+        sim.run(4.0)
+        runs.append(sim)
+    assert runs[1].width_map is not None and runs[0].width_map is None
+    assert np.array_equal(runs[0].positions, runs[1].positions)
+    assert np.array_equal(runs[0].velocities, runs[1].velocities)
+
+
+def test_crowding_people_press_on_where_queueing_ones_stand():
+    """The same dense block of people in a wide hall (crowding) and with a queue width
+    above the hall's (queueing): crowding, the block moves towards the exit faster."""
+    room = Room([(0, 0), (12, 0), (12, 8), (0, 8)], exits=[Exit("east", [(12, 3.5), (12, 4.5)])])
+    mesh = room.mesh(max_area=1.0)
+    g = np.stack(np.meshgrid(6.0 + 0.42 * np.arange(10), 2.0 + 0.42 * np.arange(10)), -1)
+    x = g.reshape(-1, 2)
+    gone = []
+    for queue_width in (1.2, 20.0):
+        p = SocialForceParams(speed_law="weidmann", U_f=1.34, rho_jam=5.4, crowd_stretch=3.0,
+                              crowd_knee=2.0, queue_width=queue_width,
+                              crowd_width=queue_width + 1.1, density_self=0)
+        sim = Simulation(mesh, x, params=p)
+        sim.run(20.0)
+        gone.append(sim.n_evacuated)
+    assert gone[0] > gone[1] + 5
+
+
+def test_bad_crowding_parameters_are_clear_errors():
+    with pytest.raises(ParameterError, match="parameter 'crowd_stretch'"):
+        SocialForceParams(crowd_stretch=0.5)
+    with pytest.raises(ParameterError, match="parameter 'crowd_width'"):
+        SocialForceParams(queue_width=2.0, crowd_width=1.5)
+    with pytest.raises(ParameterError, match="parameter 'queue_width'"):
+        SocialForceParams(queue_width=-1.0)
+
+
+def test_the_equation_of_state_sees_the_standing_crowds_social_radii():
+    """pedmesh calibrate measures a standing crowd (desired speed 0, in the open: crowding):
+    its social radii are r - shrink, so at a given density it pushes less; a periodic box's
+    virial equals the lattice formula with those radii."""
+    from pedmesh.calibration import lattice_virial, periodic_virial, standing_social_rij
+
+    plain, shrunk = SocialForceParams(), SocialForceParams(shrink=0.05)
+    assert standing_social_rij(plain) == 2 * plain.r
+    assert standing_social_rij(shrunk) == pytest.approx(0.2)
+    rho = 6.0
+    a = math.sqrt(2.0 / (math.sqrt(3.0) * rho))
+    nx, ny = 12, 14  # a periodic triangular lattice: ny rows a sqrt(3)/2 apart
+    x = np.array([((i + 0.5 * (j % 2)) * a, j * a * math.sqrt(3.0) / 2.0)
+                  for j in range(ny) for i in range(nx)])
+    L = (nx * a, ny * a * math.sqrt(3.0) / 2.0)
+    for p in (plain, shrunk):
+        assert periodic_virial(x, L, p) == pytest.approx(lattice_virial(rho, p), rel=1e-9)
+    assert lattice_virial(rho, shrunk) < 0.6 * lattice_virial(rho, plain)
