@@ -192,7 +192,7 @@ def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100, rounds=5):
 
 
 #: the dense-crowd terms of the social force model, off (the table fit's values)
-DENSE_OFF = {"shrink": 0.0, "crowd_stretch": 1.0, "vision": 1.0}
+DENSE_OFF = {"shrink": 0.0, "crowd_stretch": 1.0}
 
 
 def dense_terms_ab(steps: int = 300, repeats: int = 5, preset: str = "validated"):

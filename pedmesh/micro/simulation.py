@@ -203,9 +203,13 @@ class Simulation:
         if p.crowd_stretch > 1.0:
             from .crowding import width_map
 
-            if mesh.room is None:
-                raise SimulationError("crowd_stretch > 1 needs the mesh's room (its walls)")
-            self.width_map = width_map(mesh.room.walkable)
+            if mesh.room is not None:
+                walkable = mesh.room.walkable
+            else:  # a bare mesh: its triangles' union is the walkable area
+                import shapely
+
+                walkable = shapely.union_all(shapely.polygons(mesh.points[mesh.triangles]))
+            self.width_map = width_map(walkable)
             wm = self.width_map
             self._wmap = wm.width
             self._wgeo = np.array([wm.x0, wm.y0, 1.0 / wm.cell, p.queue_width, p.crowd_width])

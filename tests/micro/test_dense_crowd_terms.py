@@ -279,3 +279,42 @@ def test_the_equation_of_state_sees_the_standing_crowds_social_radii():
     for p in (plain, shrunk):
         assert periodic_virial(x, L, p) == pytest.approx(lattice_virial(rho, p), rel=1e-9)
     assert lattice_virial(rho, shrunk) < 0.6 * lattice_virial(rho, plain)
+
+
+def test_two_bodies_at_rest_come_closer_than_at_speed():
+    """The distance at which two people's social repulsion balances a given push is smaller
+    when they want to stand than when they want to walk: A exp((s_ij - d)/B) = F gives
+    d = s_ij + B ln(A/F), with s_ij the sum of their social radii."""
+    p = SocialForceParams(shrink=0.05, t_space=0.5)
+    rad = np.full(2, p.r)
+    dist = {}
+    for name, u in (("rest", 0.0), ("walking", 1.3)):
+        rs = np.empty(2)
+        K.social_radii(2, rad, np.full(2, u), p.shrink, p.t_space, False, rad, rs)
+        push = 100.0  # [N]
+        lo, hi = 0.05, 1.0  # bisect the distance where the pair force equals the push
+        for _ in range(80):
+            d = 0.5 * (lo + hi)
+            fx, _ = K.pair_force(d, 0.0, d, 0.0, 0.0, 2 * p.r, p.A, 1.0 / p.B, p.k, p.kappa,
+                                 rs[0] + rs[1])
+            lo, hi = (d, hi) if fx > push else (lo, d)
+        dist[name] = d
+    assert dist["rest"] == pytest.approx(dist["walking"] - 2 * 0.05, abs=1e-9)
+
+
+def test_crowding_on_a_bare_mesh_uses_its_triangles():
+    """A mesh without its room (built from arrays) still gets a free width map: the union
+    of its triangles."""
+    import dataclasses
+
+    room = Room([(0, 0), (12, 0), (12, 1.5), (0, 1.5)], exits=[Exit("e", [(12, 0), (12, 1.5)])])
+    mesh = room.mesh(max_area=1.0)
+    bare = dataclasses.replace(mesh, room=None) if dataclasses.is_dataclass(mesh) else None
+    if bare is None:
+        pytest.skip("TriMesh is not a dataclass")
+    x = np.array([[2.0, 0.75], [4.0, 0.75]])
+    p = SocialForceParams(crowd_stretch=2.0)
+    a = Simulation(mesh, x, params=p)
+    b = Simulation(bare, x, params=p)
+    assert np.array_equal(a.width_map.at(x), b.width_map.at(x))
+    assert a.width_map.at(x) == pytest.approx([1.5, 1.5], abs=0.11)
