@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Iterable
 
 from ..errors import ParameterError
+from .crowding import CROWD_WIDTH_M, QUEUE_WIDTH_M
 
 __all__ = ["SocialForceParams", "SFMNumerics", "with_overrides", "parse_param_overrides",
            "TEXT_PARAMS", "BOOL_PARAMS"]
@@ -64,9 +65,9 @@ class SocialForceParams:
     crowd_knee: float = 2.7
     #: [m] free widths up to this queue (crowding factor 0; Adrian et al. 2020: the change
     #: from queueing to crowding lies between corridors 1.2 and 2.3 m wide)
-    queue_width: float = 1.2
+    queue_width: float = QUEUE_WIDTH_M
     #: [m] free widths from this on crowd (crowding factor 1)
-    crowd_width: float = 2.3
+    crowd_width: float = CROWD_WIDTH_M
 
     def __post_init__(self) -> None:
         _check_positive(self, skip=("speed_law", "density_self", "speed_table", "shrink",
