@@ -120,10 +120,7 @@ def run_case(probe: str, kind: str, name: str) -> dict:
             s = VB.run_sfm(room, out, overrides=ov, preset=preset, model_options={"seed": 1})
             if s["error"]:
                 return {"error": s["error"]}
-            setup = V.MeasurementSetup(walkable=room.walkable,
-                                       lines={"middle": room.measurement_lines[0].polyline},
-                                       area=VB.bottleneck_front(b), steady_line="middle")
-            m = V.measure(V.load_run(out), setup)
+            m = V.measure(V.load_run(out), VB.bottleneck_setup(room, b))
             return {"J_per_b": m["flow"]["middle"] / b, "front": m["density"],
                     "stuck": int(s.get("n_initial", 0)) - int(s.get("n_evacuated", 0))}
         path = VB.ROOMS / f"{name}.json"

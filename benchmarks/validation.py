@@ -113,13 +113,17 @@ def bottleneck_room(width_m: float, *, length_m: float = BOTTLENECK_LENGTH,
                 name=f"bottleneck-b{width_m:g}")
 
 
-def bottleneck_front(width_m: float) -> list[tuple[float, float]]:
-    """The area [m] in front of the opening of :func:`bottleneck_room` where the density is
-    measured: FRONT_DEPTH deep, FRONT_MARGIN wider than the opening on each side."""
+def bottleneck_setup(room: Room, width_m: float) -> V.MeasurementSetup:
+    """Where a :func:`bottleneck_room` of width ``width_m`` [m] is measured: the flow at
+    its line ``middle`` (also the steady state), the density in the area in front of the
+    opening, FRONT_DEPTH deep and FRONT_MARGIN wider than the opening on each side."""
     xl = 4.0 - 0.5 * width_m - FRONT_MARGIN
     xr = 4.0 + 0.5 * width_m + FRONT_MARGIN
     y1 = 7.5
-    return [(xl, y1 - FRONT_DEPTH), (xr, y1 - FRONT_DEPTH), (xr, y1), (xl, y1)]
+    return V.MeasurementSetup(
+        walkable=room.walkable, lines={"middle": room.measurement_lines[0].polyline},
+        area=[(xl, y1 - FRONT_DEPTH), (xr, y1 - FRONT_DEPTH), (xr, y1), (xl, y1)],
+        steady_line="middle")
 
 
 def free_room(*, length_m: float = 60.0, width_m: float = 4.0) -> Room:
@@ -336,9 +340,7 @@ def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float
     seeds = tuple(seeds)
     for b in widths:
         room = bottleneck_room(b)
-        setup = V.MeasurementSetup(walkable=room.walkable,
-                                   lines={"middle": room.measurement_lines[0].polyline},
-                                   area=bottleneck_front(b), steady_line="middle")
+        setup = bottleneck_setup(room, b)
         flows, dens, summaries = [], [], []
         for seed in seeds:
             out = _seed_dir(runs_dir, f"b{b:g}", seed, seeds)

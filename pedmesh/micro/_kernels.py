@@ -442,6 +442,9 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     if crowd:
         crowd_factors(x, n, wmap, wgeo[0], wgeo[1], wgeo[2], wgeo[3], wgeo[4], cf)
     soc = rad
+    # the desired speeds of the space requirement serve the driving term too, unless the
+    # densities are evaluated again below
+    have_ue = space[0] > 0.0 and not with_density
     if space[0] > 0.0:
         cs = math.sqrt(const_u[0] * const_u[0] + const_u[1] * const_u[1]) if use_const else -1.0
         desired_speeds(n, u0, law, rho, cs, crowd, cf, space[4], space[3], ue)
@@ -461,13 +464,11 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     for i in range(n):
         tbuf[i] = tri[i] + toff[i] if tri[i] >= 0 else -1
     _interpolate(dpack, tbuf[:n], x[:n], e)
+    if not have_ue:
+        desired_speeds(n, u0, law, rho, -1.0, crowd, cf, space[4], space[3], ue)
     for i in range(n):
-        if crowd:
-            ue = u0[i] * shape(law, crowd_density(rho[i], cf[i], space[4], space[3]))
-        else:
-            ue = u0[i] * shape(law, rho[i])
-        F[i, 0] += (ue * e[i, 0] - v[i, 0]) * inv_tau
-        F[i, 1] += (ue * e[i, 1] - v[i, 1]) * inv_tau
+        F[i, 0] += (ue[i] * e[i, 0] - v[i, 0]) * inv_tau
+        F[i, 1] += (ue[i] * e[i, 1] - v[i, 1]) * inv_tau
 
 
 # ------------------------------------------------------------------ exits and reflection

@@ -98,6 +98,15 @@ class SocialForceParams:
         return SpeedLaw(self.speed_law, self.U_f, self.beta, self.rho_jam, self.gamma_w,
                         table=self.speed_table)
 
+    def kernel_law(self):
+        """The speed law array (:func:`pedmesh.speed.shape`) the social force model reads
+        at its Gaussian kernel density, which includes one's own share: with
+        ``density_self`` 0 the law is shifted by that share, 1/(pi R^2)."""
+        law = self.speed.array
+        if not self.density_self:
+            law[4] = 1.0 / (math.pi * self.R * self.R)
+        return law
+
     def desired_speed(self, rho):
         """U_e(rho) [m/s] (paper eq_desired_speed: U_f exp(-beta rho) with the exponential
         law)."""

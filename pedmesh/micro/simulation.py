@@ -216,9 +216,7 @@ class Simulation:
         if p.shrink > 0 and p.shrink >= float(self.rad.min()):
             raise SimulationError(f"parameter 'shrink' ({p.shrink:g} m) must be less than every "
                                   f"body radius (smallest {float(self.rad.min()):g} m)")
-        self._law = self.params.speed.array  # the desired-speed law (pedmesh.speed)
-        if not p.density_self:  # U_e of the density around a pedestrian, without its own
-            self._law[4] = 1.0 / (math.pi * p.R * p.R)
+        self._law = p.kernel_law()  # the desired-speed law (pedmesh.speed)
         # routes
         self.reroute = bool(reroute)
         if desired_velocity is not None:
