@@ -195,38 +195,30 @@ def standing_social_rij(p: SocialForceParams) -> float:
 
 def crowd_social_rij(p: SocialForceParams, x: np.ndarray, L: float) -> float:
     """The sum of two social radii [m] in a crowd at the positions ``x`` of a periodic box
-    of side ``L`` [m], as the social force model gives them: each person's radius
-    ``min(r, r - shrink + t_space U_e / 2)`` at the desired speed U_e the model's speed
-    law wants at the crowd's mean kernel density (in the open: crowding factor 1), so the
-    equation of state is measured with the space the model's people keep at that density
-    (a standing box whose radii were those of people who want to stand would push far
-    less than the model's crowds do). ``2 r`` in the paper's model."""
+    of side ``L`` [m], as the social force model gives them: its social radius
+    (:func:`pedmesh.micro._kernels.social_radii`) at the desired speed its speed law wants
+    at the crowd's mean kernel density (own share included, crowding factor 1: in the
+    open; :func:`pedmesh.micro._kernels.desired_speeds`), so the equation of state is
+    measured with the space the model's people keep at that density (a box whose radii
+    were those of people who want to stand would push far less than the model's crowds
+    do). ``2 r`` in the paper's model."""
     if p.shrink <= 0:
         return 2.0 * p.r
     from scipy.spatial import cKDTree
+
+    from .micro._kernels import desired_speeds, social_radii
 
     R = p.R
     w0 = 1.0 / (math.pi * R * R)
     tree = cKDTree(np.asarray(x, float) % L, boxsize=L)
     pairs = tree.query_pairs(min(3.0 * R, 0.499 * L), output_type="ndarray")
     d = np.linalg.norm(((x[pairs[:, 0]] - x[pairs[:, 1]]) + 0.5 * L) % L - 0.5 * L, axis=1)
-    rho_k = 2.0 * w0 * np.exp(-(d / R) ** 2).sum() / len(x)  # without one's own share
-    if p.density_self:
-        rho_k += w0
-    if p.crowd_stretch > 1.0 and rho_k > p.crowd_knee:
-        rho_k = p.crowd_knee + (rho_k - p.crowd_knee) / p.crowd_stretch
-    ue = float(p.speed(rho_k)) if p.density_self else float(
-        p.U_f * _shape_without_own_share(p, rho_k))
-    return 2.0 * min(p.r, p.r - p.shrink + 0.5 * p.t_space * ue)
-
-
-def _shape_without_own_share(p: SocialForceParams, rho_k: float) -> float:
-    """g(rho_k) of the speed law at a kernel density without one's own share (the social
-    force model's ``density_self=0``)."""
-    from .speed import shape
-
-    law = p.speed.array
-    return float(shape(law, rho_k))
+    rho = np.array([w0 + 2.0 * w0 * np.exp(-(d / R) ** 2).sum() / len(x)])
+    one, ue, rs = np.ones(1), np.empty(1), np.empty(1)
+    desired_speeds(1, np.array([p.U_f]), p.kernel_law(), rho, -1.0, p.crowd_stretch > 1.0,
+                   one, p.crowd_knee, p.crowd_stretch, ue)
+    social_radii(1, np.array([p.r]), ue, p.shrink, p.t_space, p.crowd_stretch > 1.0, one, rs)
+    return 2.0 * float(rs[0])
 
 
 def periodic_virial(x: np.ndarray, L, params: SocialForceParams | None = None,
