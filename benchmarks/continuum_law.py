@@ -45,10 +45,10 @@ def main(argv: list[str] | None = None) -> int:
                                      FD_WIDTH, FD_WINDOW, fd_speed_table,
                                      measure_fundamental_diagram)
     from pedmesh.presets import preset_overrides
-    from pedmesh.run.models import model_parameters
+    from pedmesh.models import get_model
     from pedmesh.speed import format_speed_table
 
-    sfm = preset_overrides(args.preset, model_parameters("sfm"), {})
+    sfm = preset_overrides(args.preset, get_model("sfm").parameter_names, {})
     U_f = float(sfm.get("U_f", 1.034))
     print(f"The SFM's fundamental diagram under preset {args.preset} (U_f {U_f:g} m/s), "
           f"{args.seeds} realisation(s) per density")

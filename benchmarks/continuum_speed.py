@@ -39,6 +39,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -128,7 +129,7 @@ SWEEP = [
 
 
 def _overrides(name: str, overrides: dict) -> dict:
-    from pedmesh.macro.models import macro_model
+    from pedmesh.models.continuum import macro_model
 
     if not getattr(macro_model(name), "supports_implicit_pressure", False):
         overrides = {k: v for k, v in overrides.items() if k != "implicit_pressure"}
@@ -136,11 +137,11 @@ def _overrides(name: str, overrides: dict) -> dict:
 
 
 def _inprocess(room, name, mesh_options, overrides, t_max=900.0):
-    from pedmesh.run.models import get_model
+    from pedmesh.models import get_model
 
     t0 = time.perf_counter()
-    mesh = room.mesh(**mesh_options)
-    _, factory = get_model(name)
+    mesh = triangulate(room, **mesh_options)
+    factory = get_model(name).build
     run = factory(room, mesh, _overrides(name, overrides))
     ts, ns = [0.0], [0.0]
     while not run.done and run.t < t_max:

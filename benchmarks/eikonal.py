@@ -23,6 +23,7 @@ import numpy as np
 
 from pedmesh import load_room
 from pedmesh.eikonal import EikonalSolver, geodesic_distance
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 AREAS = [2.0, 0.5, 0.125, 0.03125]
@@ -62,7 +63,7 @@ def main(repeats: int = 9) -> None:
     room = load_room(ROOT / "geometries" / "example3.json")
     rows = []
     for a in AREAS:
-        mesh = room.mesh(max_area=a)
+        mesh = triangulate(room, max_area=a)
         exact = geodesic_distance(room, mesh.points)
         t0 = time.perf_counter()
         solver = EikonalSolver(mesh)

@@ -9,7 +9,7 @@ Three fits live here (``--law``); the shipped ``validated`` preset is the last o
     from a desired speed of 0.2 m/s on) and ``crowd_width`` = 2.3 m (Adrian et al. 2020).
     Fitted: ``shrink`` [m] in [0, 0.12], ``crowd_stretch`` in [1, 6], ``queue_width`` [m]
     in [1.2, 2.2] (the change from queueing to crowding lies between 1.2 and 2.3 m wide
-    corridors) and ``crowd_knee`` [ped/m^2] in [2, 4.5] (:mod:`pedmesh.micro.crowding`).
+    corridors) and ``crowd_knee`` [ped/m^2] in [2, 4.5] (:mod:`pedmesh.models.sfm.crowding`).
     The targets: the five corridor runs' exit flows with both entrances, the door (the
     waiting crowd of ``geometries/experiments/``) and the replayed inflow, and the pooled
     Voronoi speeds at 1/2/3 /m^2 of both; the bottleneck series 0.5-2.5 m against the
@@ -184,7 +184,7 @@ LAWS: dict[str, dict[str, Any]] = {
         "carried": ("tau", "A"),
     },
     # dense crowds (issue 31): the table fit's law and parameters fixed; fitted the
-    # speed-dependent space requirement and queueing/crowding (pedmesh.micro.crowding),
+    # speed-dependent space requirement and queueing/crowding (pedmesh.models.sfm.crowding),
     # against both entrances of the corridor runs, the bottleneck series' published band
     # and the densities in front of its openings
     "crowd": {

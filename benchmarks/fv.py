@@ -22,12 +22,12 @@ import numpy as np
 from _common import run_to_end
 
 from pedmesh import Exit, Room, load_room
-from pedmesh.macro.models import macro_model
-from pedmesh.macro.run import MacroRun
-from pedmesh.macro.solver import FVOptions, FVSolver
+from pedmesh.models.continuum import macro_model
+from pedmesh.models.continuum.adapter import MacroRun
+from pedmesh.models.continuum.solver import FVOptions, FVSolver
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
-PARAMS = {"rdue": {"U_f", "beta"}, "pw": {"c0", "U_f", "beta", "tau", "rho_cut", "u_max"}}
 
 
 def residual_cost(repeats: int = 21):
@@ -36,7 +36,7 @@ def residual_cost(repeats: int = 21):
         room = Room([(0, 0), (100, 0), (100, 50), (0, 50)],
                     exits=[Exit("e", [(100, 20), (100, 30)])])
         # quality meshing (min angle 30 deg) makes about 1.58x as many triangles as area/max_area
-        mesh = room.mesh(max_area=1.58 * 5000.0 / target)
+        mesh = triangulate(room, max_area=1.58 * 5000.0 / target)
         for name in ("pw", "rdue"):
             model = macro_model(name)
             s = FVSolver(mesh, model, FVOptions())
@@ -63,14 +63,14 @@ def residual_cost(repeats: int = 21):
 
 def example2_runs():
     room = load_room(ROOT / "geometries" / "example2.json")
-    mesh = room.mesh()
+    mesh = triangulate(room)
     out = []
     cases = [("rdue", {}, "demand"), ("rdue", {"exit": "transmissive"}, "transmissive")]
     for c0 in (0.5, 1.0):
         for kind in ("vacuum", "transmissive"):
             cases.append(("pw", {"c0": c0, "exit": kind}, kind))
     for name, over, kind in cases:
-        run = MacroRun(room, mesh, over, model=name, model_params=PARAMS[name])
+        run = MacroRun(room, mesh, over, model=name)
         wall, t99 = run_to_end(run)
         s = run.summary()
         label = name + (f" c0={over['c0']:g}" if "c0" in over else "")

@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from pedmesh import load_room
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(n_points: int = 1_000_000, repeats: int = 5) -> None:
     room = load_room(ROOT / "geometries" / "example3.json")
-    mesh = room.mesh(max_area=0.125)
+    mesh = triangulate(room, max_area=0.125)
     mesh.locate(np.zeros((1, 2)))  # compile (or load the numba cache)
     t0 = time.perf_counter()
     from pedmesh.mesh._locate import TriangleLocator

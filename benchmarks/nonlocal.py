@@ -24,9 +24,10 @@ import numpy as np
 from _common import run_to_end
 
 from pedmesh import load_room
-from pedmesh.macro.kernels import SFMFriction, SFMRepulsion
-from pedmesh.macro.nonlocal_ops import build_pair_operators
-from pedmesh.run.models import MODELS
+from pedmesh.models.continuum.physics import SFMFriction, SFMRepulsion
+from pedmesh.models.continuum.nonlocal_ops import build_pair_operators
+from pedmesh.models import get_model
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 #: max_area [m^2] of the coarse mesh of the wall-time goal (h about 1.1 m, against 0.56 m)
@@ -37,7 +38,7 @@ DERIVED = ["mac1", "mac2-local", "mac2-local-friction", "mac2-nonlocal", "mac2-n
 def operator_sizes(room):
     rows = []
     for a in (2.0, 0.5, 0.125):
-        mesh = room.mesh(max_area=a)
+        mesh = triangulate(room, max_area=a)
         t0 = time.perf_counter()
         ops = build_pair_operators(mesh, SFMRepulsion(), SFMFriction())
         rows.append((mesh.n_triangles, mesh.h, time.perf_counter() - t0, ops.n_pairs,
@@ -48,7 +49,7 @@ def operator_sizes(room):
 def step_costs(room, mesh, models):
     out = []
     for name in models:
-        run = MODELS[name](room, mesh, {})
+        run = get_model(name).build(room, mesh, {})
         for _ in range(5):
             run.step()
         t0 = time.perf_counter()
@@ -60,7 +61,7 @@ def step_costs(room, mesh, models):
 
 
 def full_run(room, mesh, name, overrides):
-    run = MODELS[name](room, mesh, overrides)
+    run = get_model(name).build(room, mesh, overrides)
     wall, t99 = run_to_end(run)
     return run.summary(), wall, t99
 
@@ -72,7 +73,7 @@ def main(skip_runs: bool = False, only_goal: bool = False, models=None) -> None:
     print("|---:|---:|---:|---:|---:|---:|---:|")
     for n, h, t, p, nw, nk, ni in operator_sizes(room):
         print(f"| {n} | {h:.2f} | {t:.1f} | {p} | {nw} | {nk} | {ni} |")
-    mesh = room.mesh()
+    mesh = triangulate(room)
     print("\nCost of one step on Example 2's default mesh (first seconds)")
     print("| model | ms/step | dt [s] |")
     print("|---|---:|---:|")
@@ -100,11 +101,11 @@ def goal_runs(room) -> None:
     """The wall-time goal: the SFM on the default mesh against mac1 (exit: empty space) on
     the default mesh and on a coarse one, every wall time from scratch (mesh, routes or
     operators, and the run)."""
-    from pedmesh.micro import Simulation
+    from pedmesh.models.sfm import Simulation
     from pedmesh.run import evacuation_times
 
     t0 = time.perf_counter()
-    sim = Simulation(room.mesh())
+    sim = Simulation(triangulate(room))
     sim.run(1000.0)
     sfm_wall = time.perf_counter() - t0
     t50, t90, t100 = evacuation_times(sim.exit_time, 2400)
@@ -116,8 +117,8 @@ def goal_runs(room) -> None:
           f"{sfm_wall:.1f} (to the end) | 1 |", flush=True)
     for area in (COARSE_AREA, None):
         t0 = time.perf_counter()
-        mesh = room.mesh() if area is None else room.mesh(max_area=area)
-        run = MODELS["mac1"](room, mesh, {})
+        mesh = triangulate(room) if area is None else triangulate(room, max_area=area)
+        run = get_model("mac1").build(room, mesh, {})
         build = time.perf_counter() - t0
         _, t99 = run_to_end(run)
         s = run.summary()

@@ -28,18 +28,19 @@ from pathlib import Path
 import numpy as np
 
 from pedmesh import Exit, Room, StartArea, load_room
-from pedmesh.micro import Simulation
+from pedmesh.models.sfm import Simulation
 from pedmesh.eikonal.direction import _interpolate
-from pedmesh.micro import _kernels as K
-from pedmesh.micro.simulation import PAIR_SKIN
+from pedmesh.models.sfm import kernels as K
+from pedmesh.models.sfm.simulation import PAIR_SKIN
 from pedmesh.run import evacuation_times
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def example2_end_to_end():
     room = load_room(ROOT / "geometries" / "example2.json")
-    mesh = room.mesh()
+    mesh = triangulate(room)
     t0 = time.perf_counter()
     sim = Simulation(mesh)
     t_setup = time.perf_counter() - t0
@@ -170,7 +171,7 @@ def scaling(sizes=(2400, 10_000, 40_000, 100_000), n_steps=100, rounds=5):
                     exits=[Exit("east", [(W, 0.3 * H), (W, 0.7 * H)])],
                     start_areas=[StartArea("crowd", [(2, 5), (2 + side, 5), (2 + side, 5 + side),
                                                      (2, 5 + side)], count=N)])
-        mesh = room.mesh(max_area=2.0)
+        mesh = triangulate(room, max_area=2.0)
         sim = Simulation(mesh)
         for _ in range(5):
             sim.step()
@@ -200,14 +201,14 @@ def dense_terms_ab(steps: int = 300, repeats: int = 5, preset: str = "validated"
     ``preset`` with its dense-crowd terms (space requirement, crowding) and with them off
     (:data:`DENSE_OFF`), interleaved A/B ``repeats`` times. Returns the per-step times [s]
     of each (lists) and the terms' values."""
-    from pedmesh.micro import SFMNumerics, SocialForceParams
+    from pedmesh.models.sfm import SFMNumerics, SocialForceParams
     from pedmesh.presets import preset_overrides
-    from pedmesh.run.models import model_parameters
+    from pedmesh.models import get_model
 
     room = load_room(ROOT / "geometries" / "example2.json")
-    mesh = room.mesh()
+    mesh = triangulate(room)
     names = {f.name for f in SocialForceParams.__dataclass_fields__.values()}
-    vals = {k: v for k, v in preset_overrides(preset, model_parameters("sfm")).items()
+    vals = {k: v for k, v in preset_overrides(preset, get_model("sfm").parameter_names).items()
             if k in names}
     on = SocialForceParams(**vals)
     off = SocialForceParams(**{**vals, **DENSE_OFF})

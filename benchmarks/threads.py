@@ -12,7 +12,7 @@ implicit correction (whose conjugate gradients run in scipy, serially).
     python benchmarks/threads.py [--room geometries/venue.json] [--model eos]
                                  [--warm 60] [--repeats 15]
 
-Results are bitwise the same on any thread count (tests/macro/test_parallel.py); this
+Results are bitwise the same on any thread count (tests/continuum/test_parallel.py); this
 script measures only the time.
 """
 
@@ -24,6 +24,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -32,7 +33,7 @@ def main(argv=None) -> int:
     import numba
 
     from pedmesh.io import load_room
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--room", default=str(ROOT / "geometries" / "venue.json"))
@@ -44,8 +45,8 @@ def main(argv=None) -> int:
     if numba.config.NUMBA_NUM_THREADS < 2:
         raise SystemExit("needs NUMBA_NUM_THREADS >= 2")
     room = load_room(args.room)
-    mesh = room.mesh()
-    run = MODELS[args.model](room, mesh, {"threads": 2})
+    mesh = triangulate(room)
+    run = get_model(args.model).build(room, mesh, {"threads": 2})
     t0 = time.perf_counter()
     while run.t < args.warm and not run.done:
         run.step()
@@ -85,7 +86,7 @@ def main(argv=None) -> int:
         s.implicit.correct(V, L[:, 1:3], dt, s.cact, s._live_faces)
 
     def step():
-        from pedmesh.macro.solver import FVState
+        from pedmesh.models.continuum.solver import FVState
 
         st = FVState(Q.copy(), t)
         st.outflow = np.zeros(s.n_exits)
@@ -95,7 +96,7 @@ def main(argv=None) -> int:
              ("first-order fluxes + wave speeds", low), ("residual (all of the above, "
                                                          "limiter, sources)", residual),
              ("residual + implicit correction", correction), ("whole step (2 stages)", step)]
-    from pedmesh.macro.solver import _one_blas_thread
+    from pedmesh.models.continuum.solver import _one_blas_thread
 
     print(f"{'kernel':<48} {'1 thread med / best':>22} {'2 threads med / best':>22} "
           f"{'speed-up med / best':>20}")

@@ -69,6 +69,7 @@ import numpy as np
 
 from pedmesh import Exit, MeasurementLine, Room, StartArea, load_room
 from pedmesh import validation as V
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 ROOMS = ROOT / "geometries" / "experiments"
@@ -194,7 +195,7 @@ def run_sfm(room: Room, out_dir: Path, *, overrides: Mapping[str, Any] | None = 
 
     t0 = time.perf_counter()
     try:
-        mesh = room.mesh(**{k: v for k, v in MESH_OPTIONS.items() if v is not None})
+        mesh = triangulate(room, **{k: v for k, v in MESH_OPTIONS.items() if v is not None})
         summary = run_model(room, mesh, "sfm", overrides=dict(overrides or {}), t_end=t_end,
                             out_dir=out_dir, quiet=True, geometry=geometry,
                             mesh_options=dict(MESH_OPTIONS),
@@ -623,7 +624,7 @@ def write_report(results: Mapping[str, Any], out_dir: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from pedmesh.micro.params import parse_param_overrides
+    from pedmesh.parameters import parse_overrides as parse_param_overrides
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)

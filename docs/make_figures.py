@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "images"
@@ -27,7 +28,7 @@ def main() -> None:
     plt = _plt()
     OUT.mkdir(parents=True, exist_ok=True)
     hall = load_room(ROOT / "geometries" / "pillar_hall.json")
-    mesh = hall.mesh(max_area=1.0)
+    mesh = triangulate(hall, max_area=1.0)
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     plot_mesh(ax, mesh, hall)
     ax.set_title(f"pillar_hall.json: {mesh.n_triangles} triangles (max_area 1 m^2)", fontsize=9)
@@ -35,7 +36,7 @@ def main() -> None:
     fig.savefig(OUT / "mesh.png", dpi=100)
     plt.close(fig)
 
-    fine = hall.mesh(max_area=0.1)
+    fine = triangulate(hall, max_area=0.1)
     phi = solve_eikonal(fine)
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
     tc = plot_route(ax, fine, phi, room=hall)
@@ -54,7 +55,7 @@ def main() -> None:
         print("no Example 2 runs in examples/results: run examples/reproduce_paper.py first")
         return
     room = load_room(ROOT / "geometries" / "example2.json")
-    m2 = room.mesh()
+    m2 = triangulate(room)
     def finished(path):
         return (path / "summary.json").exists() and RunResult.load(path).finished
 

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -54,7 +55,9 @@ def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
     returns {example: ComparisonResult}."""
     from pedmesh import load_room
     from pedmesh.compare import parse_model_specs, run_comparison
-    from pedmesh.run import MODELS as REGISTERED
+    from pedmesh.models import model_names
+
+    REGISTERED = model_names()
 
     out = Path(out)
     results = {}
@@ -66,7 +69,7 @@ def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
         if not specs:
             continue
         room = load_room(ROOT / "geometries" / f"{ex}.json")
-        mesh = room.mesh(max_area=max_area, feature_area=None)  # (uniform, as the results)
+        mesh = triangulate(room, max_area=max_area, feature_area=None)  # (uniform, as the results)
         t0 = time.perf_counter()
         print(f"== {ex}: {', '.join(s.label for s in specs)}", file=sys.stderr)
         results[ex] = (room, mesh, run_comparison(

@@ -7,7 +7,7 @@ pedestrians per square metre.
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+from ._version import __version__
 
 from .errors import (
     GeometryError,
@@ -28,6 +28,8 @@ _LAZY = {
     "EikonalSolver": "pedmesh.eikonal",
     "DirectionField": "pedmesh.eikonal",
     "ensemble": "pedmesh.ensembles",
+    "simulate": "pedmesh.api",
+    "build": "pedmesh.api",
 }
 
 
@@ -43,6 +45,8 @@ def __getattr__(name: str):
 
 __all__ = [
     "__version__",
+    "build",
+    "simulate",
     "DirectionField",
     "EikonalSolver",
     "ensemble",

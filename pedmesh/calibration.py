@@ -9,7 +9,7 @@ mass, the virial
             + \\frac{1}{2|A|} \\sum_i |v_i|^2,
 
 in periodic boxes (minimum image) of standing crowds, with the simulator's own pair force
-(:func:`pedmesh.micro._kernels.pair_force`), and fits a smooth, monotone p(rho) for the
+(:func:`pedmesh.models.sfm.kernels.pair_force`), and fits a smooth, monotone p(rho) for the
 ``eos`` continuum model.
 
 Protocol per density (all settable): N pedestrians on a triangular lattice displaced at
@@ -31,9 +31,10 @@ import numba as nb
 import numpy as np
 
 from .errors import ParameterError, PedmeshError
-from .micro._kernels import pair_force
-from .macro.models.eos_file import DEFAULT_EOS, EOS_FORMAT, load_eos, save_eos
-from .micro.params import SocialForceParams
+from .models.sfm.kernels import pair_force
+from .models.continuum.eos_file import DEFAULT_EOS, EOS_FORMAT, load_eos, save_eos
+from .models.sfm.params import SocialForceParams
+from .mesh.triangulate import triangulate
 
 __all__ = ["CalibrationOptions", "measure_pressure", "calibrate", "fit_eos", "load_eos",
            "save_eos", "lattice_virial", "periodic_virial", "pedestrian_stress",
@@ -188,7 +189,7 @@ def _run_box(x, v, L, nc, rc, rij, A, B, k, kappa, m, tau, dt, n_relax, n_sample
 
 def standing_social_rij(p: SocialForceParams) -> float:
     """The sum of two social radii [m] of people who want to stand (desired speed 0, in the
-    open: crowding factor 1, :mod:`pedmesh.micro.crowding`): ``2 (r - shrink)``; ``2 r``
+    open: crowding factor 1, :mod:`pedmesh.models.sfm.crowding`): ``2 (r - shrink)``; ``2 r``
     in the paper's model."""
     return 2.0 * (p.r - p.shrink) if p.shrink > 0 else 2.0 * p.r
 
@@ -196,9 +197,9 @@ def standing_social_rij(p: SocialForceParams) -> float:
 def crowd_social_rij(p: SocialForceParams, x: np.ndarray, L: float) -> float:
     """The sum of two social radii [m] in a crowd at the positions ``x`` of a periodic box
     of side ``L`` [m], as the social force model gives them: its social radius
-    (:func:`pedmesh.micro._kernels.social_radii`) at the desired speed its speed law wants
+    (:func:`pedmesh.models.sfm.kernels.social_radii`) at the desired speed its speed law wants
     at the crowd's mean kernel density (own share included, crowding factor 1: in the
-    open; :func:`pedmesh.micro._kernels.desired_speeds`), so the equation of state is
+    open; :func:`pedmesh.models.sfm.kernels.desired_speeds`), so the equation of state is
     measured with the space the model's people keep at that density (a box whose radii
     were those of people who want to stand would push far less than the model's crowds
     do). ``2 r`` in the paper's model."""
@@ -206,7 +207,7 @@ def crowd_social_rij(p: SocialForceParams, x: np.ndarray, L: float) -> float:
         return 2.0 * p.r
     from scipy.spatial import cKDTree
 
-    from .micro._kernels import desired_speeds, social_radii
+    from .models.sfm.kernels import desired_speeds, social_radii
 
     R = p.R
     w0 = 1.0 / (math.pi * R * R)
@@ -361,8 +362,8 @@ def calibrate(params: SocialForceParams | None = None, options: CalibrationOptio
     keep what was measured if the run is interrupted."""
     from tqdm import tqdm
 
-    from . import __version__
-    from .macro.kernels import SFMRepulsion, gamma1
+    from ._version import __version__
+    from .models.continuum.physics import SFMRepulsion, gamma1
 
     p = params or SocialForceParams()
     o = options or CalibrationOptions()
@@ -444,7 +445,7 @@ def pedestrian_stress(*, positions: np.ndarray, velocities: np.ndarray,
 
 def eos_pressure(rho, cal: dict | None = None) -> np.ndarray:
     """The calibrated pressure per unit mass p(rho) [ped/s^2] (default: shipped calibration)."""
-    from .macro.models.barotropic import PressureLaw
+    from .models.continuum.barotropic import PressureLaw
 
     fit = (cal or load_eos())["fit"]
     law = PressureLaw.table(fit["rho"], fit["p"], fit["dp"])
@@ -471,7 +472,7 @@ def flowing_stress(mesh, *, params: SocialForceParams | None = None, every: floa
     """
     from tqdm import tqdm
 
-    from .micro import SFMNumerics, Simulation
+    from .models.sfm import SFMNumerics, Simulation
 
     p = params or SocialForceParams()
     sim = Simulation(mesh, params=p, numerics=SFMNumerics())
@@ -591,7 +592,7 @@ def measure_fundamental_diagram(preset: str | None = None, seeds: int = 2,
     with tempfile.TemporaryDirectory(prefix="pedmesh-fd-") as tmp:
         for rho0 in densities:
             room = fd_corridor(rho0)
-            mesh = room.mesh(max_area=2.0)
+            mesh = triangulate(room, max_area=2.0)
             for seed in range(1, seeds + 1):
                 out = Path(tmp) / f"{rho0:g}-{seed}"
                 t0 = time.perf_counter()

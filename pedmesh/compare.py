@@ -47,8 +47,8 @@ class ModelSpec:
 
 def parse_model_specs(text: str | Sequence[str]) -> list[ModelSpec]:
     """``"sfm,mac1,pw:c0=0.5"`` -> specs. Parameters after ``:`` are ``NAME=VALUE``."""
-    from .micro.params import parse_param_overrides
-    from .run import get_model
+    from .models import get_model
+    from .parameters import parse_overrides
 
     items = [s.strip() for s in (text.split(",") if isinstance(text, str) else text) if s.strip()]
     if not items:
@@ -56,8 +56,8 @@ def parse_model_specs(text: str | Sequence[str]) -> list[ModelSpec]:
     out = []
     for it in items:
         name, *params = it.split(":")
-        canon, _ = get_model(name.strip())
-        out.append(ModelSpec(canon, parse_param_overrides(params)))
+        canon = get_model(name.strip()).name
+        out.append(ModelSpec(canon, parse_overrides(params)))
     labels = [s.label for s in out]
     for lab in labels:
         if labels.count(lab) > 1:

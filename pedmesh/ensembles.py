@@ -2,7 +2,7 @@
 room, from a laptop to a cluster, with the same call.
 
 A social force run is one sample: its start positions are random (see
-:func:`pedmesh.micro.placement.seeded_positions`), so an evacuation time means something
+:func:`pedmesh.models.sfm.placement.seeded_positions`), so an evacuation time means something
 only with its spread. :func:`ensemble` runs ``members`` runs that differ by seed at every
 point of a parameter grid (``sweep``) and collects them:
 
@@ -44,6 +44,7 @@ import numpy as np
 
 from .errors import ParameterError, PedmeshError
 from .run.results import FINISHED_STATUSES
+from .mesh.triangulate import triangulate
 
 __all__ = ["ensemble", "EnsembleError", "member_seeds", "parse_sweep"]
 
@@ -67,7 +68,7 @@ def member_seeds(seed: int, members: int) -> list[int]:
 def parse_sweep(items: Sequence[str]) -> dict[str, list[Any]]:
     """``["width=0.8,1.2", "dt=0.01"]`` -> ``{"width": [0.8, 1.2], "dt": [0.01]}`` (values
     parsed as ``--param`` values are)."""
-    from .micro.params import parse_param_overrides
+    from .parameters import parse_overrides
 
     out: dict[str, list[Any]] = {}
     for item in items:
@@ -80,7 +81,7 @@ def parse_sweep(items: Sequence[str]) -> dict[str, list[Any]]:
             raise ParameterError(f"--sweep expects NAME=V1,V2,..., got '{item}'")
         if name in out:
             raise ParameterError(f"parameter '{name}' is swept twice")
-        out[name] = [parse_param_overrides([f"{name}={v}"])[name] for v in vals]
+        out[name] = [parse_overrides([f"{name}={v}"])[name] for v in vals]
     return out
 
 
@@ -110,7 +111,7 @@ def _room_and_mesh(geometry: str, mesh_options: Mapping[str, Any],
     if key not in _ROOMS:
         room = load_room(geometry)
         _ROOMS.clear()  # one room at a time is enough for an ensemble
-        _ROOMS[key] = (room, room.mesh(**dict(mesh_options), max_cells=max_cells))
+        _ROOMS[key] = (room, triangulate(room, **dict(mesh_options), max_cells=max_cells))
     return _ROOMS[key]
 
 
@@ -127,7 +128,7 @@ def run_member(task: Mapping[str, Any]) -> dict[str, Any]:
     """Run one member (on a worker) and return its row; never raises for a failed run.
     The member's compiled kernels run on one thread: the workers already keep the cores
     busy, and threads that wait for each other on a busy machine are far slower than one
-    (see :data:`pedmesh.macro.solver.PARALLEL_MIN_CELLS`)."""
+    (see :data:`pedmesh.models.continuum.solver.PARALLEL_MIN_CELLS`)."""
     import numba
 
     from .run import run_model
@@ -299,12 +300,13 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     """
     import pandas as pd
 
-    from .run import get_model
+    from .models import get_model
 
     geometry = str(geometry)
     if not Path(geometry).is_file():
         raise EnsembleError(f"{geometry}: no such file")
-    name, _ = get_model(model)
+    entry = get_model(model)
+    name = entry.name
     if isinstance(members, bool) or not isinstance(members, (int, np.integer)) or members < 1:
         raise EnsembleError(f"members must be a positive integer, got {members!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -313,7 +315,7 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         raise EnsembleError(f"workers must be a positive integer, got {workers!r}")
     if not (math.isfinite(t_end) and t_end > 0):
         raise EnsembleError(f"t_end must be a positive number of seconds, got {t_end!r}")
-    seeded = name == "sfm"
+    seeded = entry.random
     if not seeded and members > 1:
         raise EnsembleError(f"model '{name}' has no random input: its members would all be "
                             "the same; use members=1 (with a sweep)")

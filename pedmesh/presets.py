@@ -38,13 +38,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import parameters as P
 from .errors import ParameterError
 
 __all__ = ["Preset", "PRESETS", "DEFAULT_PRESET", "get_preset", "preset_overrides",
            "resolve_preset"]
 
-TABLE1 = "paper, Table 1"
-WEIDMANN = "Weidmann (1993), Transporttechnik der Fussgaenger, ETH Zurich (RiMEA 4.1.1)"
+TABLE1 = P.TABLE1_SOURCE
+WEIDMANN = P.WEIDMANN_SOURCE
 
 
 @dataclass(frozen=True)
@@ -75,27 +76,18 @@ class Preset:
         return {k: v.value for k, v in values.items() if accepted is None or k in accepted}
 
 
+#: Table 1, as the model defaults declare it (pedmesh.parameters)
 _PAPER_VALUES = {
-    "speed_law": Value("exponential", "", TABLE1 + ": U_e = U_f exp(-beta rho)"),
-    "U_f": Value(1.034, "m/s", TABLE1),
-    "beta": Value(0.05, "m^2/ped", TABLE1),
-    "tau": Value(0.5, "s", TABLE1),
-    "m": Value(60.0, "kg", TABLE1),
-    "r": Value(0.15, "m", TABLE1),
-    "R": Value(0.7, "m", TABLE1),
-    "A": Value(2000.0, "N", TABLE1),
-    "B": Value(0.08, "m", TABLE1),
-    "k": Value(1.2e5, "kg/s^2", TABLE1),
-    "kappa": Value(2.4e5, "kg/(m s)", TABLE1),
+    "speed_law": Value(P.get("speed_law").default, "",
+                       TABLE1 + ": U_e = U_f exp(-beta rho)"),
+    **{p.name: Value(p.default, p.unit, p.source) for p in P.TABLE1},
 }
 
-#: units of the parameters a preset may set
-UNITS = {"speed_law": "", "U_f": "m/s", "beta": "m^2/ped", "rho_jam": "ped/m^2",
-         "gamma_w": "ped/m^2", "rho_shift": "ped/m^2", "density_self": "0/1", "tau": "s",
-         "m": "kg", "r": "m", "R": "m", "A": "N", "B": "m", "k": "kg/s^2",
-         "kappa": "kg/(m s)", "calibration": "", "speed_table": "ped/m^2 : -",
-         "shrink": "m", "t_space": "s", "vision": "-", "crowd_stretch": "-",
-         "crowd_knee": "ped/m^2", "queue_width": "m", "crowd_width": "m"}
+
+def _unit(name: str) -> str:
+    return P.get(name).unit
+
+
 DATA = Path(__file__).resolve().parent / "data"
 FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
        "(benchmarks/fit_validated.py -> pedmesh/data/validated.json)")
@@ -113,7 +105,7 @@ def _validated() -> "Preset | None":
     fitted = set(fit.get("fitted", []))
     values = {k: v for k, v in _PAPER_VALUES.items() if k != "beta"}
     for k, v in fit["parameters"].items():
-        if k not in UNITS:  # (not a model parameter, e.g. the preset the fit started from)
+        if k not in P.PARAMETERS:  # (not a parameter, e.g. the preset the fit started from)
             continue
         if k in fitted:
             src = FIT + ("; U_e/U_f at the kernel density without one's own share"
@@ -139,7 +131,7 @@ def _validated() -> "Preset | None":
             src = WEIDMANN
         else:
             src = values[k].source if k in values else FIT
-        values[k] = Value(v, UNITS.get(k, ""), src)
+        values[k] = Value(v, _unit(k), src)
     continuum: dict[str, Value] = {}
     fd = DATA / "fd_validated.json"
     if fit["parameters"].get("speed_law") == "table":
@@ -147,20 +139,21 @@ def _validated() -> "Preset | None":
         # models take its fundamental diagram, measured, as theirs
         if fd.is_file():
             continuum["speed_table"] = Value(
-                json.loads(fd.read_text())["speed_table"], "ped/m^2 : -",
+                json.loads(fd.read_text())["speed_table"], _unit("speed_table"),
                 "the validated SFM's fundamental diagram (speed/U_f at the crowd's density), "
                 "measured by benchmarks/continuum_law.py -> pedmesh/data/fd_validated.json")
     # the continuum models: the same law, shifted by the kernel share the social force model
     # leaves out, so that both have one fundamental diagram
     elif not fit["parameters"].get("density_self", 1):
         R = float(fit["parameters"].get("R", _PAPER_VALUES["R"].value))
-        values["rho_shift"] = Value(round(1.0 / (math.pi * R * R), 6), "ped/m^2",
+        values["rho_shift"] = Value(round(1.0 / (math.pi * R * R), 6), _unit("rho_shift"),
                                     "1/(pi R^2): the continuum models' law at rho - 1/(pi R^2),"
                                     " the validated SFM's fundamental diagram")
     eos = DATA / "eos_validated.json"
     if eos.is_file():
-        values["calibration"] = Value(str(eos), "", "pedmesh calibrate --preset validated "
-                                                    "(the eos model's equation of state)")
+        values["calibration"] = Value(str(eos), _unit("calibration"),
+                                      "pedmesh calibrate --preset validated "
+                                      "(the eos model's equation of state)")
     return Preset("validated", "fitted to real crowds (Juelich corridor experiments, "
                                "bottleneck flows, free walking speed); see "
                                "docs/validation/", values, continuum)
@@ -176,9 +169,8 @@ PRESETS: dict[str, Preset] = {
         {**{k: v for k, v in _PAPER_VALUES.items() if k != "beta"},
          "speed_law": Value("weidmann", "",
                             WEIDMANN + ": U_e = U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam)))"),
-         "U_f": Value(1.34, "m/s", WEIDMANN),
-         "rho_jam": Value(5.4, "ped/m^2", WEIDMANN),
-         "gamma_w": Value(1.913, "ped/m^2", WEIDMANN)}),
+         "U_f": Value(1.34, _unit("U_f"), WEIDMANN),
+         **{k: Value(P.get(k).default, _unit(k), WEIDMANN) for k in ("rho_jam", "gamma_w")}}),
 }
 
 if (_v := _validated()) is not None:
@@ -205,12 +197,11 @@ def resolve_preset(explicit: str | None, room: Any = None) -> str:
 
 def preset_overrides(name: str, accepted: set[str] | frozenset[str],
                      overrides: dict[str, Any] | None = None, *,
-                     model: str | None = None) -> dict[str, Any]:
+                     continuum: bool = False) -> dict[str, Any]:
     """The parameters of a model with the parameters ``accepted`` (e.g.
-    :func:`pedmesh.run.models.model_parameters`) under preset ``name``: the preset's values
-    for those, then ``overrides`` on top. ``model``: the model's name; any but ``sfm``
+    :attr:`pedmesh.models.ModelEntry.parameter_names`) under preset ``name``: the preset's
+    values for those, then ``overrides`` on top. ``continuum``: a continuum model's, which
     takes the preset's continuum values (:attr:`Preset.continuum`)."""
-    continuum = model is not None and model != "sfm"
     out = get_preset(name).overrides(set(accepted), continuum=continuum)
     out.update(overrides or {})
     return out

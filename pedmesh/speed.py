@@ -32,6 +32,7 @@ import numba as nb
 import numpy as np
 
 from .errors import ParameterError
+from .parameters import DEFAULTS as D
 
 __all__ = ["SpeedLaw", "SPEED_LAWS", "EXPONENTIAL", "WEIDMANN", "TABLE", "shape",
            "flux_and_slope", "speed_law_from", "parse_speed_table", "format_speed_table"]
@@ -106,10 +107,10 @@ class SpeedLaw:
     """A desired-speed law (see the module docstring): its name and parameters."""
 
     name: str = "exponential"
-    U_f: float = 1.034  #: free speed [m/s]
-    beta: float = 0.05  #: [m^2/ped] (exponential)
-    rho_jam: float = 5.4  #: jam density [ped/m^2] (weidmann)
-    gamma_w: float = 1.913  #: [ped/m^2] (weidmann)
+    U_f: float = D['U_f']  #: free speed [m/s]
+    beta: float = D['beta']  #: [m^2/ped] (exponential)
+    rho_jam: float = D['rho_jam']  #: jam density [ped/m^2] (weidmann)
+    gamma_w: float = D['gamma_w']  #: [ped/m^2] (weidmann)
     #: [ped/m^2] the law is evaluated at rho - shift (free flow below it): a continuum
     #: model's match to a social force model that feels U_e without its own kernel share
     shift: float = 0.0

@@ -3,6 +3,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 GEOMETRIES = ROOT / "geometries"
@@ -42,7 +43,7 @@ def mirrored_mesh():
                 exits=[Exit("exit", [(100, 25), (100, 30)])],
                 start_areas=[StartArea("block", [(0, 25), (48, 25), (48, 50), (0, 50)],
                                        spacing=1.0)])
-    m = half.mesh(max_area=2.0)
+    m = triangulate(half, max_area=2.0)
     p = m.points
     n = len(p)
     on_axis = p[:, 1] == 25.0

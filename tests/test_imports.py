@@ -114,3 +114,86 @@ def test_every_module_imports_on_its_own():
                        timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout == ""
+
+
+#: the package's layers, bottom first: a module may import its own layer and those below,
+#: never one above (a module belongs to the longest prefix that names it)
+LAYERS: list[tuple[str, ...]] = [
+    ("pedmesh.errors", "pedmesh._version", "pedmesh._signals"),
+    ("pedmesh.parameters",),
+    ("pedmesh.speed", "pedmesh.population"),
+    ("pedmesh.presets",),
+    ("pedmesh.geometry",),
+    ("pedmesh.mesh",),
+    ("pedmesh.eikonal", "pedmesh.io"),
+    ("pedmesh.analysis",),
+    ("pedmesh.models",),
+    ("pedmesh.run",),
+    ("pedmesh.api", "pedmesh.compare", "pedmesh.ensembles", "pedmesh.calibration",
+     "pedmesh.validation", "pedmesh.plotting", "pedmesh.fitting"),
+    ("pedmesh.cli", "pedmesh.__main__", "pedmesh"),
+]
+
+
+def _layer(module: str) -> int:
+    best, layer = -1, None
+    for i, prefixes in enumerate(LAYERS):
+        for p in prefixes:
+            if (module == p or module.startswith(p + ".")) and len(p) > best:
+                best, layer = len(p), i
+    assert layer is not None, f"{module} is in no layer: add it to LAYERS"
+    return layer
+
+
+def test_the_layer_check_sees_an_upward_import():
+    assert _layer("pedmesh.geometry.room") < _layer("pedmesh.mesh.triangulate")
+    assert _layer("pedmesh.models.sfm.adapter") == _layer("pedmesh.models")
+    assert _layer("pedmesh") > _layer("pedmesh.run.driver")
+
+
+def test_imports_point_down_the_layers():
+    """No import runs back up a layer (function-level imports included)."""
+    graph = _import_graph()
+    up = sorted(f"{a} -> {b}" for a, deps in graph.items() for b in deps
+                if _layer(b) > _layer(a))
+    assert up == []
+
+
+def test_the_two_scales_stand_side_by_side():
+    """The social force model and the continuum models do not import each other."""
+    graph = _import_graph()
+    sides = ("pedmesh.models.sfm", "pedmesh.models.continuum")
+    cross = sorted(f"{a} -> {b}" for a, deps in graph.items() for b in deps
+                   for i, s in enumerate(sides)
+                   if a.startswith(s) and b.startswith(sides[1 - i]))
+    assert cross == []
+
+
+def test_one_model_registry():
+    """Every model (both scales) is one entry of pedmesh.models' registry."""
+    from pedmesh.models import entries, get_model
+    from pedmesh.models.continuum.adapter import ContinuumEntry
+
+    names = {e.name for e in entries()}
+    assert {"sfm", "eos", "rdue", "pw", "mac1"} <= names
+    assert get_model("sf").name == "sfm" and get_model("hughes").name == "rdue"
+    assert isinstance(get_model("eos"), ContinuumEntry)
+    assert get_model("sfm").scale == "particles" and get_model("eos").scale == "continuum"
+
+
+def test_no_module_named_like_a_dependency_or_a_sibling():
+    """No module shadows a dependency's name, no two files differ only by an underscore, and
+    module is named like one of pedmesh's packages."""
+    deps = {"trimesh", "triangle", "shapely", "meshio", "pyvista", "numba", "numpy", "scipy",
+            "matplotlib", "ezdxf", "tqdm", "dask", "pandas", "pedpy", "pytest", "hypothesis",
+            "skfmm", "sphinx"}
+    mods = _modules()
+    stems = [n.rsplit(".", 1)[-1] for n, p in mods.items() if p.name != "__init__.py"]
+    packages = {p.parent.name for p in mods.values() if p.name == "__init__.py"}
+    assert sorted(set(stems) & deps) == []
+    for name, path in mods.items():
+        if path.name == "__init__.py":
+            continue
+        siblings = {p.stem for p in path.parent.glob("*.py")}
+        assert path.stem.lstrip("_") == path.stem or path.stem.lstrip("_") not in siblings, name
+        assert path.stem not in packages, f"{name}: a module named like a package"

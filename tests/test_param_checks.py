@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from pedmesh.cli import main
+from pedmesh.mesh import triangulate
 
 
 @pytest.mark.parametrize(("model", "param", "message"), [
@@ -39,8 +40,8 @@ def test_good_integral_order_is_accepted(geometries_dir, tmp_path):
 @pytest.fixture
 def no_steps(monkeypatch):
     """Any simulation step fails the test: the checks must come before the first one."""
-    from pedmesh.macro.run import MacroRun
-    from pedmesh.run.models import SFMRun
+    from pedmesh.models.continuum.adapter import MacroRun
+    from pedmesh.models.sfm.adapter import SFMRun
 
     def refuse(self, *a, **k):
         raise AssertionError("a step was taken")
@@ -85,7 +86,7 @@ def test_bad_parameter_on_example3(geometries_dir, tmp_path, capsys, no_steps, m
 
 @pytest.mark.parametrize("text", ["1", "true", "TRUE", "1.0", "0", "false"])
 def test_switches_read_0_1_false_true(text):
-    from pedmesh.micro.params import parse_param_overrides
+    from pedmesh.parameters import parse_overrides as parse_param_overrides
 
     want = 1.0 if text.lower() in ("1", "true", "1.0") else 0.0
     assert parse_param_overrides([f"limiter={text}"]) == {"limiter": want}
@@ -94,9 +95,9 @@ def test_switches_read_0_1_false_true(text):
 def test_python_api_checks_the_same(load_shipped):
     """Values given from Python (not parsed from text) are checked as strictly."""
     from pedmesh import ParameterError
-    from pedmesh.macro.solver import FVOptions
-    from pedmesh.micro import SFMNumerics
-    from pedmesh.run.models import MODELS
+    from pedmesh.models.continuum.solver import FVOptions
+    from pedmesh.models.sfm import SFMNumerics
+    from pedmesh.models import get_model
 
     assert FVOptions(order=2.0).order == 2 and type(FVOptions(order=2.0).order) is int
     assert FVOptions(limiter=0).limiter is False
@@ -107,12 +108,12 @@ def test_python_api_checks_the_same(load_shipped):
         with pytest.raises(ParameterError):
             FVOptions(**kw)
     room = load_shipped("l_shaped.json")
-    mesh = room.mesh(max_area=4.0)
+    mesh = triangulate(room, max_area=4.0)
     for model, bad in (("pw", {"c0": -1.0}), ("pw", {"u_max": float("inf")}),
                        ("pw", {"U_f": "fast"}), ("pw", {"order": True}),
                        ("mac1", {"split_friction": 2}), ("eos", {"kappa": 0.0}),
                        ("rdue", {"output_interval": True})):
         with pytest.raises(ParameterError):
-            MODELS[model](room, mesh, bad)
-    run = MODELS["pw"](room, mesh, {"order": 2.0, "limiter": 1.0, "u_max": None})
+            get_model(model).build(room, mesh, bad)
+    run = get_model("pw").build(room, mesh, {"order": 2.0, "limiter": 1.0, "u_max": None})
     assert run.fv_options.order == 2 and run.fv_options.limiter is True

@@ -13,6 +13,7 @@ from pedmesh import Room
 from pedmesh.cli import main
 from pedmesh.errors import GeometryError
 from pedmesh.population import distribution_from_spec, draw_population
+from pedmesh.mesh import triangulate
 
 
 def corridor(x0=12.0, x1=18.0, **area):
@@ -121,9 +122,9 @@ def test_draws_are_reproducible_and_independent_per_quantity():
 
 # ------------------------------------------------------------------ the social force model
 def _sfm(room, seed=0, t_end=None, **over):
-    from pedmesh.run.models import SFMRun
+    from pedmesh.models.sfm.adapter import SFMRun
 
-    mesh = room.mesh(max_area=1.0)
+    mesh = triangulate(room, max_area=1.0)
     run = SFMRun(room, mesh, over, seed=seed)
     return run
 
@@ -154,7 +155,7 @@ def test_exit_assignment_is_respected():
     room = corridor(exits={"west": 0.25, "east": 0.75})
     run = _sfm(room, seed=5)
     sim = run.sim
-    target = {i: sim.toff[k] // room.mesh(max_area=1.0).n_triangles
+    target = {i: sim.toff[k] // triangulate(room, max_area=1.0).n_triangles
               for k, i in enumerate(sim.ids[:sim.n].tolist())}
     groups = run.sim._targets
     sim.run(60.0)
@@ -198,12 +199,12 @@ def test_overlapping_large_bodies_are_refused():
 # ------------------------------------------------------------------ continuum models
 @pytest.mark.parametrize("model", ["rdue", "eos"])
 def test_continuum_premovement_is_a_delayed_source(model):
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     pre = corridor(premovement={"distribution": "uniform", "min": 5.0, "max": 10.0},
                    speed=1.2)
-    mesh = pre.mesh(max_area=1.0)
-    run = MODELS[model](pre, mesh, {})
+    mesh = triangulate(pre, max_area=1.0)
+    run = get_model(model).build(pre, mesh, {})
     assert run.n_initial == pytest.approx(24.0, rel=1e-9) and run.waiting == run.n_initial
     assert any("'speed' is not used" in w for w in run.warnings)
     inside = []
@@ -329,10 +330,10 @@ def test_a_blocked_entrance_waits():
 
 @pytest.mark.parametrize("model", ["rdue", "eos"])
 def test_continuum_entrance_is_a_delayed_source(model):
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     room = entrance_room({"rate": 2.0, "start": 1.0}, count=10, crowd=False)
-    run = MODELS[model](room, room.mesh(max_area=0.5), {})
+    run = get_model(model).build(room, triangulate(room, max_area=0.5), {})
     assert run.n_initial == pytest.approx(10.0, rel=1e-9) and run.waiting == run.n_initial
     while run.t < 8.0:
         run.step(8.0)
@@ -361,7 +362,7 @@ def test_desired_directions_follow_each_ones_exits():
     room = corridor(exits={"west": 0.5, "east": 0.5})
     run = _sfm(room, seed=2)
     sim = run.sim
-    groups = sim.toff[:sim.n] // room.mesh(max_area=1.0).n_triangles
+    groups = sim.toff[:sim.n] // triangulate(room, max_area=1.0).n_triangles
     west = np.array([sim._targets[g] == ("west",) for g in groups])
     assert 0 < west.sum() < sim.n
     e = sim.desired_directions()

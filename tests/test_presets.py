@@ -16,7 +16,7 @@ TABLE1 = {"m": 60.0, "tau": 0.5, "beta": 0.05, "U_f": 1.034, "R": 0.7, "A": 2000
 
 
 def test_paper_is_table_1_and_the_model_defaults():
-    from pedmesh.micro.params import SocialForceParams
+    from pedmesh.models.sfm.params import SocialForceParams
 
     assert get_preset("paper").overrides() == TABLE1
     defaults = SocialForceParams()
@@ -33,7 +33,10 @@ def test_every_value_has_a_unit_and_a_source():
 
 
 def test_a_preset_sets_only_what_a_model_has_and_overrides_win():
-    from pedmesh.run.models import model_parameters as mp
+    from pedmesh.models import get_model
+
+    def mp(name):
+        return get_model(name).parameter_names
 
     p = preset_overrides("weidmann", mp("rdue"), {"U_f": 1.2})
     assert p == {"speed_law": "weidmann", "U_f": 1.2, "rho_jam": 5.4, "gamma_w": 1.913}
@@ -167,19 +170,22 @@ def test_continuum_values_reach_only_the_continuum_models(monkeypatch):
     its values for every model but the SFM, and --param overrides still win."""
     from pedmesh import presets
     from pedmesh.presets import Preset, Value
-    from pedmesh.run.models import model_parameters as mp
+    from pedmesh.models import get_model
+
+    def mp(name):
+        return get_model(name).parameter_names
 
     pre = Preset("two", "test", {"speed_law": Value("table", "", "s"),
                                  "speed_table": Value("0:1 1:0.5", "", "sfm's"),
                                  "r": Value(0.2, "m", "s")},
                  {"speed_table": Value("0:1 2:0.5", "", "continuum's")})
     monkeypatch.setitem(presets.PRESETS, "two", pre)
-    sfm = preset_overrides("two", mp("sfm"), model="sfm")
+    sfm = preset_overrides("two", mp("sfm"), continuum=False)
     assert sfm["speed_table"] == "0:1 1:0.5" and sfm["r"] == 0.2
     for model in ("eos", "rdue", "pw", "mac1"):
-        p = preset_overrides("two", mp(model), model=model)
+        p = preset_overrides("two", mp(model), continuum=model != "sfm")
         assert p["speed_table"] == "0:1 2:0.5" and p["speed_law"] == "table"
         assert ("r" in p) == (model in ("eos", "mac1"))  # (those two derive from the SFM)
     assert preset_overrides("two", mp("eos"), {"speed_table": "0:1 3:0"},
-                            model="eos")["speed_table"] == "0:1 3:0"
+                            continuum=True)["speed_table"] == "0:1 3:0"
     assert pre.overrides()["speed_table"] == "0:1 1:0.5"  # (without a model: the values)

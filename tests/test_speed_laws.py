@@ -10,6 +10,7 @@ import pytest
 
 from pedmesh.errors import ParameterError
 from pedmesh.speed import SpeedLaw, flux_and_slope, shape
+from pedmesh.mesh import triangulate
 
 
 def test_weidmann_values():
@@ -81,16 +82,16 @@ def _out_after_4_s(model: str, laws: dict[str, dict]) -> dict[str, float]:
     """People out after 4 s of a crowd of 3 /m^2 right at a 4 m exit, for each of the
     ``laws`` (name: parameters), with the law checked to reach the model's summary."""
     from pedmesh import Room
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     room = Room(outline=[(0, 0), (12, 0), (12, 4), (0, 4)],
                 exits=[{"name": "out", "polyline": [(12, 0), (12, 4)]}],
                 start_areas=[{"name": "crowd", "polygon": [(6, 0.3), (11.7, 0.3), (11.7, 3.7),
                                                            (6, 3.7)], "density": 3.0}])
-    mesh = room.mesh(max_area=0.5)
+    mesh = triangulate(room, max_area=0.5)
     out = {}
     for name, params in laws.items():
-        run = MODELS[model](room, mesh, params)
+        run = get_model(model).build(room, mesh, params)
         assert run.parameters()["speed_law"] == params["speed_law"]
         while run.t < 4.0:
             run.step(4.0)
@@ -115,13 +116,13 @@ def test_a_lone_walker_and_its_own_density(self_share):
     """With density_self=1 (the paper's eq3) a lone walker feels its own kernel density,
     1/(pi R^2) = 0.65 /m^2, and walks at U_f g(0.65); with 0 it walks at U_f."""
     from pedmesh import Room
-    from pedmesh.run.models import SFMRun
+    from pedmesh.models.sfm.adapter import SFMRun
 
     room = Room(outline=[(0, 0), (30, 0), (30, 2), (0, 2)],
                 exits=[{"name": "end", "polyline": [(30, 0), (30, 2)]}],
                 start_areas=[{"name": "one", "polygon": [(0.5, 0.5), (1.5, 0.5), (1.5, 1.5),
                                                          (0.5, 1.5)], "count": 1}])
-    run = SFMRun(room, room.mesh(max_area=1.0), {"speed_law": "weidmann", "U_f": 1.34,
+    run = SFMRun(room, triangulate(room, max_area=1.0), {"speed_law": "weidmann", "U_f": 1.34,
                                                   "density_self": self_share})
     for _ in range(500):  # 5 s: ten relaxation times
         run.sim.step()
@@ -136,13 +137,13 @@ def test_rdue_with_a_jam_density_piles_no_one_above_it(load_shipped):
     """RDUE on the paper's Example 3: with the exponential law (no jam density) cells at
     the obstacle's corners and the exits fill to tens of people per m^2; with Weidmann's
     law the density stays at the jam density (within the reconstruction's overshoot)."""
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     room = load_shipped("example3.json")
-    mesh = room.mesh()
+    mesh = triangulate(room)
     peak = {}
     for law in ("exponential", "weidmann"):
-        run = MODELS["rdue"](room, mesh, {"speed_law": law})
+        run = get_model("rdue").build(room, mesh, {"speed_law": law})
         top = 0.0
         while not run.done and run.t < 300:
             run.step()
@@ -252,10 +253,11 @@ def test_a_table_law_equal_to_weidmanns_gives_the_same_run(model):
 def test_rdue_with_a_table_law_piles_no_one_above_its_jam_point(load_shipped):
     """As with Weidmann's law: a table that reaches g = 0 at 5.6 /m^2 keeps RDUE's
     Example 3 at that density (within the reconstruction's overshoot)."""
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     room = load_shipped("example3.json")
-    run = MODELS["rdue"](room, room.mesh(), {"speed_law": "table", "speed_table": TABLE})
+    run = get_model("rdue").build(room, triangulate(room),
+                                  {"speed_law": "table", "speed_table": TABLE})
     top = 0.0
     while not run.done and run.t < 300:
         run.step()

@@ -17,6 +17,7 @@ import pytest
 
 from pedmesh import validation as V
 from pedmesh.errors import ParameterError
+from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("PEDMESH_EXPERIMENTS", ROOT.parent / "shared" / "experiments"))
@@ -239,7 +240,7 @@ def test_validated_crowd_presses_at_a_narrow_bottleneck(tmp_path):
         pytest.skip("the validated preset has no dense-crowd terms")
     b = 0.6
     room = _bottleneck(b)
-    mesh = room.mesh(max_area=2.0, min_angle=30.0, feature_area=0.3)
+    mesh = triangulate(room, max_area=2.0, min_angle=30.0, feature_area=0.3)
     setup = V.MeasurementSetup(walkable=room.walkable,
                                lines={"middle": room.measurement_lines[0].polyline},
                                area=((3.2, 5.0), (4.8, 5.0), (4.8, 6.0), (3.2, 6.0)),

@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pedmesh.mesh import triangulate
 
 HERE = Path(__file__).resolve().parent
 ROOMS = HERE / "rooms"
@@ -47,7 +48,7 @@ def run(room_path: Path, model: str, out: Path, preset: str | None, t_end: float
     from pedmesh.run import run_model
 
     room = load_room(room_path)
-    mesh = room.mesh(max_area=max_area)
+    mesh = triangulate(room, max_area=max_area)
     opts = {"seed": seed} if seed is not None and model == "sfm" else {}
     return run_model(room, mesh, model, t_end=t_end, out_dir=out, quiet=True,
                      geometry=str(room_path), preset=preset, model_options=opts,
@@ -407,7 +408,7 @@ def test4(args, models):
             if model == "sfm":
                 rho, u = _fd_sfm(d, box, 3.0, 6.0)
             else:
-                rho, u = _fd_continuum(d, room.mesh(max_area=0.5), box, 3.0, 6.0)
+                rho, u = _fd_continuum(d, triangulate(room, max_area=0.5), box, 3.0, 6.0)
             meas.append(f"{rho:.2f}: {u:.2f} ({float(weid(rho)):.2f})")
         rows.append(row(4, model, "fundamental diagram (reported): density /m^2: speed m/s "
                                   "(Weidmann's)", "; ".join(meas), True,

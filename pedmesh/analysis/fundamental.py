@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from ..parameters import DEFAULTS as D
 
 __all__ = ["DensityFlowDiagram", "density_flow_diagram", "reference_flow", "PAPER_BINS"]
 
@@ -37,7 +38,8 @@ def density_flow_diagram(*, density: np.ndarray, flow: np.ndarray,
     return DensityFlowDiagram(bins, 0.5 * (bins[1:] + bins[:-1]), mean, counts)
 
 
-def reference_flow(*, density: np.ndarray, U_f: float = 1.034, beta: float = 0.05) -> np.ndarray:
+def reference_flow(*, density: np.ndarray, U_f: float = D['U_f'],
+                   beta: float = D['beta']) -> np.ndarray:
     """f_d = rho U_e(rho) = rho U_f exp(-beta rho) [ped/(m s)]."""
     d = np.asarray(density, float)
     return d * U_f * np.exp(-beta * d)

@@ -10,19 +10,19 @@ import argparse
 import importlib
 import sys
 
-from .. import __version__
+from .._version import __version__
 from ..errors import PedmeshError
 
 # subcommand name -> module (each provides add_args(parser) and run(args) -> int)
 SUBCOMMANDS = {
-    "mesh": "pedmesh.cli.mesh",
-    "route": "pedmesh.cli.route",
-    "run": "pedmesh.cli.run",
-    "compare": "pedmesh.cli.compare",
-    "calibrate": "pedmesh.cli.calibrate",
-    "ensemble": "pedmesh.cli.ensemble",
-    "export": "pedmesh.cli.export",
-    "presets": "pedmesh.cli.presets",
+    "mesh": "pedmesh.cli.cmd_mesh",
+    "route": "pedmesh.cli.cmd_route",
+    "run": "pedmesh.cli.cmd_run",
+    "compare": "pedmesh.cli.cmd_compare",
+    "calibrate": "pedmesh.cli.cmd_calibrate",
+    "ensemble": "pedmesh.cli.cmd_ensemble",
+    "export": "pedmesh.cli.cmd_export",
+    "presets": "pedmesh.cli.cmd_presets",
 }
 
 

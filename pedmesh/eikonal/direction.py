@@ -25,7 +25,7 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 
-from ..mesh.trimesh import BoundaryKind, TriMesh
+from ..mesh.triangle_mesh import BoundaryKind, TriMesh
 
 __all__ = ["DirectionField", "p1_gradients"]
 

@@ -30,8 +30,8 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from ..errors import ParameterError
-from ..mesh.trimesh import BoundaryKind, TriMesh
-from . import _fmm
+from ..mesh.triangle_mesh import BoundaryKind, TriMesh
+from . import fmm_kernels as _fmm
 
 __all__ = ["EikonalSolver", "solve_eikonal", "DEFAULT_CORNER_RADIUS"]
 

@@ -605,34 +605,6 @@ class Room:
             return np.zeros((0, 2))
         return np.concatenate(parts, axis=0)
 
-    def mesh(
-        self,
-        max_area: float = 2.0,
-        min_angle: float = 30.0,
-        *,
-        feature_area: float | None = 0.3,
-        exit_size: float | None = None,
-        size_growth: float = 0.2,
-        size: Any = None,
-        max_cells: float | None = None,
-    ):
-        """Triangulate the walkable area; see :func:`pedmesh.mesh.triangulate`: triangles of
-        ``feature_area`` [m^2] at exits, corners and walls, growing to ``max_area`` [m^2] in
-        the open (``feature_area=None``: uniform ``max_area``); ``max_cells`` None: its
-        default limit of 2,000,000 triangles, ``math.inf``: no limit."""
-        from ..mesh.triangulate import triangulate
-
-        return triangulate(
-            self,
-            max_area=max_area,
-            min_angle=min_angle,
-            feature_area=feature_area,
-            exit_size=exit_size,
-            size_growth=size_growth,
-            size=size,
-            max_cells=max_cells,
-        )
-
     def with_changes(self, **changes: Any) -> "Room":
         """A new (re-validated) room with some fields replaced."""
         import dataclasses

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import PedmeshError
+from ..mesh.triangulate import triangulate
 
 __all__ = ["room_scene", "export_room_3d", "read_positions", "FORMATS", "Z_UP_TO_Y_UP"]
 
@@ -70,7 +71,7 @@ def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
                      ("body_radius", body_radius), ("body_height", body_height)):
         if not (np.isfinite(v) and v > 0):
             raise PedmeshError(f"{label} must be a positive number of metres, got {v!r}")
-    tri = mesh if mesh is not None else room.mesh(max_area=max(room.area / 2000.0, 0.5))
+    tri = mesh if mesh is not None else triangulate(room, max_area=max(room.area / 2000.0, 0.5))
     scene = trimesh.Scene()
     floor = trimesh.Trimesh(np.column_stack([tri.points, np.zeros(tri.n_points)]),
                             tri.triangles, process=False)

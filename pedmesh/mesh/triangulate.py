@@ -18,7 +18,7 @@ from shapely.geometry import Point
 
 from ..errors import MeshError
 from ..geometry.tolerances import EXIT_TOLERANCE
-from .trimesh import BoundaryKind, TriMesh
+from .triangle_mesh import BoundaryKind, TriMesh
 
 __all__ = ["triangulate", "exit_size_field", "feature_size_field", "size_fields", "estimate_cells",
            "check_max_cells", "MAX_CELLS", "MAX_AREA", "FEATURE_AREA"]

@@ -6,25 +6,27 @@ import math
 import sys
 import time
 from pathlib import Path
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from .._signals import request_stop, stop_on_signals, stop_requested
 from ..errors import ParameterError, PedmeshError, SimulationError
-from .models import get_model
+from ..models import CONTINUUM, DenseFrames, ModelEntry, get_model
 from .output import RunWriter, _clean, file_sha256
-from .protocol import RunModel
+from ..models.protocol import RunModel
 
-__all__ = ["run_model", "run_settings", "RunInterrupted", "request_stop", "stop_requested",
-           "stop_on_signals"]
+__all__ = ["run_model", "build_model", "plan_run", "execute", "RunPlan", "run_settings",
+           "resolve_parameters", "check_options", "RunInterrupted", "request_stop",
+           "stop_requested", "stop_on_signals"]
 
 
 class RunInterrupted(Exception):
     """A run stopped by Ctrl-C or SIGTERM; the output written so far is kept."""
 
-    def __init__(self, t: float, out_dir: Path) -> None:
+    def __init__(self, t: float, out_dir: Path | str) -> None:
         super().__init__(f"interrupted at t = {t:.2f} s; results up to then are in {out_dir}")
         self.t = t
         self.out_dir = out_dir
@@ -53,6 +55,42 @@ def run_settings(model: str, *, overrides: Mapping[str, Any] | None = None, t_en
     })
 
 
+def resolve_parameters(entry: ModelEntry, room, *, preset: str | None = None,
+                       overrides: Mapping[str, Any] | None = None) -> tuple[str, dict]:
+    """The preset a run of ``entry`` uses (asked for, else the room file's, else the default)
+    and its parameters: the preset's values for those the model has, the ``overrides`` on
+    top."""
+    from ..presets import preset_overrides, resolve_preset
+
+    preset = resolve_preset(preset, room)
+    return preset, preset_overrides(preset, entry.parameter_names, dict(overrides or {}),
+                                    continuum=entry.scale == CONTINUUM)
+
+
+def check_options(entry: ModelEntry, options: Mapping[str, Any]) -> None:
+    """A one-line error for a model option the model does not take."""
+    unknown = sorted(set(options) - entry.options)
+    if unknown:
+        raise ParameterError(f"model '{entry.name}' takes no option '{unknown[0]}'"
+                             + (f" (options: {', '.join(sorted(entry.options))})"
+                                if entry.options else ""))
+
+
+def build_model(room, mesh, model: str, *, preset: str | None = None,
+                overrides: Mapping[str, Any] | None = None, **options: Any) -> RunModel:
+    """The stepping form: model ``model`` built on ``mesh`` with its preset's parameters and
+    ``overrides``, ready for ``step()`` (:class:`~pedmesh.models.protocol.RunModel`); nothing
+    is written. ``options``: the model options its registry entry lists (e.g. ``seed``)."""
+    entry = get_model(model)
+    check_options(entry, options)
+    _, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)
+    run = entry.build(room, mesh, parameters, **options)
+    if not isinstance(run, RunModel):
+        raise TypeError(f"model '{entry.name}' does not implement "
+                        "pedmesh.models.protocol.RunModel")
+    return run
+
+
 def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = None,
               t_end: float = 1000.0, out_dir: str | Path = "run", quiet: bool = False,
               geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
@@ -68,64 +106,99 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     run (a bad parameter while the model is built, a full disk); in every case the summary
     is written first, with status ``interrupted`` or ``failed`` and the error.
     """
-    from tqdm import tqdm
+    out = Path(out_dir)
+    plan = plan_run(room, mesh, model, overrides=overrides, t_end=t_end, geometry=geometry,
+                    mesh_options=mesh_options, model_options=model_options, preset=preset)
+    writer = RunWriter(out, plan.header, exit_names=mesh.exit_names)
+    return execute(plan, writer, quiet=quiet, where=str(out))
 
+
+@dataclass(frozen=True)
+class RunPlan:
+    """What a run will do, checked before anything is written: the model's entry, its
+    parameters and options, the end time [s] and the summary's header."""
+
+    entry: ModelEntry
+    room: Any
+    mesh: Any
+    parameters: dict
+    options: dict
+    t_end: float
+    header: dict
+
+
+def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = None,
+             t_end: float = 1000.0, geometry: str | None = None,
+             mesh_options: Mapping[str, Any] | None = None,
+             model_options: Mapping[str, Any] | None = None,
+             preset: str | None = None) -> RunPlan:
+    """Check a run's request and resolve its parameters (see :func:`run_model`)."""
     if stop_requested():  # asked to stop before this run began (e.g. between compared models)
         raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a positive number of seconds, got {t_end!r}")
-    from ..presets import preset_overrides, resolve_preset
-    from .models import model_parameters
-
-    name, factory = get_model(model)
+    entry = get_model(model)
     overrides = dict(overrides or {})
-    # the parameters: the preset's (asked for, else the room file's, else the default) with
-    # the overrides on top; the settings record the preset's name and the overrides
-    preset = resolve_preset(preset, room)
-    parameters = preset_overrides(preset, model_parameters(name), overrides, model=name)
+    # the settings record the preset's name and the overrides
+    preset, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)
     model_options = dict(model_options or {})
-    t_wall0 = time.perf_counter()
-    out = Path(out_dir)
+    check_options(entry, model_options)
     header = {
-        "model": name,
+        "model": entry.name,
         "geometry": geometry,
         "room": room.name if room is not None else None,
         "mesh": {"vertices": mesh.n_points, "triangles": mesh.n_triangles,
                  **(mesh_options or {})},
         "t_end": t_end,
-        "settings": run_settings(name, overrides=overrides, t_end=t_end, geometry=geometry,
-                                 mesh_options=mesh_options, model_options=model_options,
-                                 preset=preset),
+        "settings": run_settings(entry.name, overrides=overrides, t_end=t_end,
+                                 geometry=geometry, mesh_options=mesh_options,
+                                 model_options=model_options, preset=preset),
     }
-    writer = RunWriter(out, header, exit_names=mesh.exit_names)
+    return RunPlan(entry, room, mesh, parameters, model_options, float(t_end), header)
+
+
+def _progress_bar(name: str, t_end: float, quiet: bool):
+    from tqdm import tqdm
+
+    tty = sys.stderr.isatty()
+    return tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
+                dynamic_ncols=True, desc=f"{name}", leave=True,
+                mininterval=0.5 if tty else 30.0,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
+                           "[{elapsed}<{remaining}] {postfix}")
+
+
+def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the output") -> dict:
+    """Build the planned model and run it to the end, writing through ``writer`` (a
+    :class:`~pedmesh.run.output.RunWriter`, or an in-memory one with the same methods);
+    returns the final summary. ``where`` names the output in messages. The summary is
+    written in every case, with status ``interrupted`` or ``failed`` and the error."""
+    t_wall0 = time.perf_counter()
+    name = plan.entry.name
     run: RunModel | None = None
     bar = None
     frame = 0
     status, error = "failed", None
     try:
-        run = factory(room, mesh, parameters, **model_options)
+        run = plan.entry.build(plan.room, plan.mesh, plan.parameters, **plan.options)
         if not isinstance(run, RunModel):
-            raise TypeError(f"model '{name}' does not implement pedmesh.run.protocol.RunModel")
+            raise TypeError(f"model '{name}' does not implement "
+                            "pedmesh.models.protocol.RunModel")
         extra: dict[str, Any] = {"parameters": run.parameters()}
         if run.warnings:
             extra["warnings"] = list(run.warnings)
             for w in run.warnings:
                 print(f"pedmesh: warning: {w}", file=sys.stderr)
         writer.start(extra)
-        tty = sys.stderr.isatty()
-        bar = tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
-                   dynamic_ncols=True, desc=f"{name}", leave=True,
-                   mininterval=0.5 if tty else 30.0,
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
-                              "[{elapsed}<{remaining}] {postfix}")
-        frame = _loop(run, writer, t_end, bar)
+        bar = _progress_bar(name, plan.t_end, quiet)
+        frame = _loop(run, writer, plan.t_end, bar)
         status = "finished" if run.done else "stopped at t_end"
     except KeyboardInterrupt:
         status = "interrupted"
-        raise RunInterrupted(run.t if run is not None else 0.0, out) from None
+        raise RunInterrupted(run.t if run is not None else 0.0, where) from None
     except SimulationError as exc:
         error = str(exc)
-        raise SimulationError(f"{error} (results up to then are in {out})") from None
+        raise SimulationError(f"{error} (results up to then are in {where})") from None
     except BaseException as exc:
         error = str(exc) if isinstance(exc, PedmeshError) else f"{type(exc).__name__}: {exc}"
         raise
@@ -142,7 +215,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
                                 t_stop=run.t if run is not None else 0.0, frames=frame,
                                 wall_time_s=time.perf_counter() - t_wall0, **result)
     if summary.get("status") == "failed":  # the output could not be closed (full disk)
-        raise SimulationError(f"{summary.get('error')} (results up to then are in {out})")
+        raise SimulationError(f"{summary.get('error')} (results up to then are in {where})")
     return summary
 
 
@@ -172,7 +245,7 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
 
     # a model that interpolates its frames in time (MacroRun.write_frame_at) steps freely
     # and gets each frame at k * output_interval; the others land their steps on them
-    dense = bool(getattr(run, "dense_frames", False)) and hasattr(run, "write_frame_at")
+    dense = isinstance(run, DenseFrames) and bool(run.dense_frames)
 
     def dense_frames(t: float, final: bool) -> None:
         nonlocal frame, last_frame_t, next_frame

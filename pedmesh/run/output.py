@@ -43,7 +43,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
+from ..analysis.evacuation import evacuation_times, evacuation_times_from_curve
 from ..errors import PedmeshError
 from ..io.vtk import PVDWriter
 
@@ -187,40 +188,6 @@ def _clean(obj: Any) -> Any:
         f = float(obj)
         return f if math.isfinite(f) else None
     return obj
-
-
-def evacuation_times(exit_times: np.ndarray, n_initial: int,
-                     fractions: Sequence[float] = (0.5, 0.9, 1.0)) -> list[float | None]:
-    """Times [s] by which the given fractions of ``n_initial`` pedestrians have left
-    (``None`` if not reached): the ``ceil(f N)``-th exit time."""
-    t = np.sort(np.asarray(exit_times, float)[np.isfinite(exit_times)])
-    out: list[float | None] = []
-    for f in fractions:
-        k = max(int(math.ceil(f * n_initial - 1e-9)), 1)
-        out.append(float(t[k - 1]) if len(t) >= k else None)
-    return out
-
-
-def evacuation_times_from_curve(t: np.ndarray, evacuated: np.ndarray, n_initial: float,
-                                fractions: Sequence[float] = (0.5, 0.9, 1.0)) -> list[float | None]:
-    """First times [s] at which a cumulative evacuation curve reaches ``f * n_initial``
-    (linear interpolation between samples); ``None`` if not reached."""
-    t = np.asarray(t, float)
-    e = np.asarray(evacuated, float)
-    out: list[float | None] = []
-    for f in fractions:
-        target = f * n_initial
-        idx = np.flatnonzero(e >= target - 1e-9 * max(n_initial, 1.0))
-        if len(idx) == 0:
-            out.append(None)
-            continue
-        k = int(idx[0])
-        if k == 0 or e[k] == e[k - 1]:
-            out.append(float(t[k]))
-        else:
-            w = (target - e[k - 1]) / (e[k] - e[k - 1])
-            out.append(float(t[k - 1] + min(max(w, 0.0), 1.0) * (t[k] - t[k - 1])))
-    return out
 
 
 class RunWriter:

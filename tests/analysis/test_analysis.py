@@ -22,6 +22,7 @@ from pedmesh.analysis import (
     particle_outflow,
     reference_flow,
 )
+from pedmesh.mesh import triangulate
 
 
 def test_single_pedestrian_density_integrates_to_one():
@@ -48,7 +49,7 @@ def test_kernel_velocity_is_a_weighted_mean():
 @pytest.fixture(scope="module")
 def door_mesh():
     room = Room([(0, 0), (10, 0), (10, 8), (0, 8)], exits=[Exit("door", [(10, 2), (10, 6)])])
-    return room.mesh(max_area=0.2)
+    return triangulate(room, max_area=0.2)
 
 
 def test_uniform_stream_outflow_continuum(door_mesh):

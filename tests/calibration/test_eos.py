@@ -21,9 +21,10 @@ from pedmesh.calibration import (
     save_eos,
 )
 from pedmesh.errors import ParameterError, PedmeshError
-from pedmesh.macro.kernels import SFMRepulsion, gamma1
-from pedmesh.macro.models.barotropic import PressureLaw, vacuum_godunov
-from pedmesh.micro.params import SocialForceParams
+from pedmesh.models.continuum.physics import SFMRepulsion, gamma1
+from pedmesh.models.continuum.barotropic import PressureLaw, vacuum_godunov
+from pedmesh.models.sfm.params import SocialForceParams
+from pedmesh.mesh import triangulate
 
 P = SocialForceParams()
 G1 = gamma1(SFMRepulsion(A=P.A, B=P.B, k=P.k, m=P.m, r_ij=2 * P.r))
@@ -189,7 +190,7 @@ def corridor():
     room = Room([(0, 0), (12, 0), (12, 4), (0, 4)], exits=[Exit("door", [(12, 1), (12, 3)])],
                 start_areas=[StartArea("crowd", [(1, 0.5), (7, 0.5), (7, 3.5), (1, 3.5)],
                                        density=2.0)])
-    return room, room.mesh(max_area=0.3)
+    return room, triangulate(room, max_area=0.3)
 
 
 def test_eos_model_evacuates_with_mass_conserved(corridor, tmp_path):

@@ -57,7 +57,7 @@ def test_validated_continuum_law_is_the_sfms_measured_diagram():
     benchmarks/continuum_law.py measured with the preset's own SFM parameters, and the SFM
     walks at that table's speed now (one realisation at 2 /m^2, within 6 %)."""
     from pedmesh.presets import DATA, get_preset
-    from pedmesh.run.models import model_parameters
+    from pedmesh.models import get_model
 
     path = DATA / "fd_validated.json"
     if get_preset("validated").values["speed_law"].value != "table":
@@ -65,7 +65,7 @@ def test_validated_continuum_law_is_the_sfms_measured_diagram():
     rec = json.loads(path.read_text())
     pre = get_preset("validated")
     assert pre.continuum["speed_table"].value == rec["speed_table"]
-    sfm = pre.overrides(model_parameters("sfm"))
+    sfm = pre.overrides(get_model("sfm").parameter_names)
     for k, v in rec["sfm_parameters"].items():
         assert sfm[k] == v, k  # measured with today's parameters
     row, = measure_fundamental_diagram("validated", seeds=1, densities=(2.0,))

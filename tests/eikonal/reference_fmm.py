@@ -1,5 +1,5 @@
 """A slow, plain-Python fast-marching method: the reference the compiled kernel is tested
-against. Written independently of pedmesh.eikonal._fmm: heapq with lazy deletion, the
+against. Written independently of pedmesh.eikonal.fmm_kernels: heapq with lazy deletion, the
 Kimmel-Sethian local solver in its law-of-cosines form, and its own obtuse-angle walk."""
 
 from __future__ import annotations

@@ -10,6 +10,7 @@ from pedmesh.eikonal import EikonalSolver, geodesic_distance, solve_eikonal
 from pedmesh.mesh import BoundaryKind
 
 from reference_fmm import reference_fmm
+from pedmesh.mesh import triangulate
 
 AREAS = [2.0, 0.5, 0.125, 0.03125]  # nested: each mesh has about 4x the vertices
 
@@ -17,7 +18,7 @@ AREAS = [2.0, 0.5, 0.125, 0.03125]  # nested: each mesh has about 4x the vertice
 @pytest.fixture(scope="module")
 def example3_sequence(load_shipped):
     room = load_shipped("example3.json")
-    meshes = [room.mesh(max_area=a) for a in AREAS]
+    meshes = [triangulate(room, max_area=a) for a in AREAS]
     exact = [geodesic_distance(room, m.points) for m in meshes]
     return room, meshes, exact
 
@@ -66,7 +67,7 @@ def test_observed_order(example3_sequence, corner_radius):
 
 def test_exits_are_exact(load_shipped):
     room = load_shipped("example3.json")
-    mesh = room.mesh(max_area=1.0)
+    mesh = triangulate(room, max_area=1.0)
     phi = solve_eikonal(mesh, exit_values=[0.0, 7.5])
     ev = mesh.exit_vertices
     assert np.all(phi[ev == 0] == 0.0)
@@ -80,7 +81,7 @@ def test_exits_are_exact(load_shipped):
 
 def test_exit_selection_and_values(load_shipped):
     room = load_shipped("example3.json")
-    mesh = room.mesh(max_area=1.0)
+    mesh = triangulate(room, max_area=1.0)
     north = solve_eikonal(mesh, exits=["exit-north"])
     d_north = geodesic_distance(room, mesh.points, exits=[1])
     assert np.abs(north - d_north).mean() < 0.15
@@ -95,7 +96,7 @@ def test_exit_selection_and_values(load_shipped):
 
 
 def _jittered(room, max_area, min_angle, amount, seed=0):
-    mesh = room.mesh(max_area=max_area, min_angle=min_angle)
+    mesh = triangulate(room, max_area=max_area, min_angle=min_angle)
     rng = np.random.default_rng(seed)
     p = mesh.points.copy()
     inner = ~mesh.boundary_vertices
@@ -154,7 +155,7 @@ def test_variable_cost_agrees_with_scikit_fmm():
     ref = _skfmm_reference(cost_fn, 0.05)  # order 2 on 801 x 401 nodes: L1 0.002 m for c = 1
     errs, first_order, hs = [], [], []
     for a in (0.4, 0.1):
-        mesh = room.mesh(max_area=a)
+        mesh = triangulate(room, max_area=a)
         cost = cost_fn(*mesh.points.T)
         phi = solve_eikonal(mesh, cost=cost)
         errs.append(np.abs(phi - ref(mesh.points)).mean())
@@ -184,7 +185,7 @@ def test_unreachable_vertices_are_inf():
 
 
 def test_bad_costs_are_named(load_shipped):
-    mesh = load_shipped("l_shaped.json").mesh(max_area=2.0)
+    mesh = triangulate(load_shipped("l_shaped.json"), max_area=2.0)
     with pytest.raises(ParameterError, match="cost must be positive"):
         solve_eikonal(mesh, cost=-1.0)
     bad = np.ones(mesh.n_points)
@@ -201,7 +202,7 @@ def test_compiled_kernel_matches_plain_python(load_shipped, corner_radius):
     # (a uniform mesh: on the graded default mesh the plain-Python reference handles some
     # obtuse triangles differently; the compiled kernel is then the closer of the two to
     # the exact distance, mean error 0.25 m against 0.29 m at max_area 4)
-    mesh = room.mesh(max_area=4.0, feature_area=None)
+    mesh = triangulate(room, max_area=4.0, feature_area=None)
     s = EikonalSolver(mesh, corner_radius=corner_radius)
     rng = np.random.default_rng(3)
     f_tri = 0.5 + rng.random(mesh.n_triangles)

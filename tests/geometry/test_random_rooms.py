@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from pedmesh import PedmeshError, Room, load_room
 from pedmesh.geometry.formats.native import room_from_dict, room_to_dict
+from pedmesh.mesh import triangulate
 
 SETTINGS = settings(max_examples=40, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
@@ -65,7 +66,7 @@ def valid_rooms(draw):
 @given(valid_rooms())
 def test_random_valid_rooms_mesh(d):
     room = Room(**d)
-    mesh = room.mesh(max_area=room.area / 150.0, min_angle=25.0)
+    mesh = triangulate(room, max_area=room.area / 150.0, min_angle=25.0)
     exact = shapely.Polygon(room.outline).area - sum(o.shape.area for o in room.obstacles)
     assert abs(mesh.total_area - exact) <= 1e-9 * exact
     for k in range(len(room.exits)):

@@ -70,7 +70,7 @@ def test_tiny_max_area_gives_the_triangles_it_asks_for():
 @pytest.mark.parametrize("max_area", [2.0, 0.5, 0.1])
 def test_cell_estimate_is_close(load_shipped, geometry, max_area):
     room = load_shipped(geometry)
-    n = room.mesh(max_area=max_area, feature_area=None).n_triangles
+    n = triangulate(room, max_area=max_area, feature_area=None).n_triangles
     assert 0.9 <= n / estimate_cells(room, max_area) <= 1.1
 
 
@@ -82,8 +82,8 @@ def test_default_graded_mesh_and_its_estimate(load_shipped, geometry):
     from pedmesh.mesh.triangulate import size_fields
 
     room = load_shipped(geometry)
-    mesh = room.mesh()
-    uniform = room.mesh(max_area=0.5, feature_area=None)  # (the default before)
+    mesh = triangulate(room)
+    uniform = triangulate(room, max_area=0.5, feature_area=None)  # (the default before)
     est = estimate_cells(room, 2.0, size_fields(room))
     assert 0.85 <= mesh.n_triangles / est <= 1.15
     assert mesh.n_triangles < uniform.n_triangles
@@ -99,7 +99,7 @@ def test_graded_estimate_is_close(load_shipped):
     room = load_shipped("example2.json")
     from pedmesh.mesh.triangulate import exit_size_field
 
-    n = room.mesh(max_area=2.0, feature_area=None, exit_size=0.3).n_triangles
+    n = triangulate(room, max_area=2.0, feature_area=None, exit_size=0.3).n_triangles
     est = estimate_cells(room, 2.0, [exit_size_field(room, 0.3)])
     assert 0.85 <= n / est <= 1.15
 
@@ -107,11 +107,11 @@ def test_graded_estimate_is_close(load_shipped):
 def test_oversized_mesh_is_refused_before_it_is_built(load_shipped, geometries_dir, capsys):
     room = load_shipped("example2.json")
     with pytest.raises(MeshError, match=r"about [\d,]+ triangles, more than the limit of 1,000"):
-        room.mesh(max_area=0.5, max_cells=1000)
-    assert room.mesh(max_area=20.0, feature_area=None, max_cells=1000).n_triangles < 1000
-    assert room.mesh(max_area=5.0, max_cells=math.inf).n_triangles > 1000  # no limit
+        triangulate(room, max_area=0.5, max_cells=1000)
+    assert triangulate(room, max_area=20.0, feature_area=None, max_cells=1000).n_triangles < 1000
+    assert triangulate(room, max_area=5.0, max_cells=math.inf).n_triangles > 1000  # no limit
     with pytest.raises(MeshError, match="more than the limit of 1,000"):  # graded: counted
-        room.mesh(max_area=20.0, max_cells=1000)
+        triangulate(room, max_area=20.0, max_cells=1000)
     status = main(["mesh", str(geometries_dir / "example2.json"), "--max-area", "1e-4"])
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and "--max-cells" in err[0]
@@ -122,13 +122,12 @@ def test_oversized_mesh_is_refused_before_it_is_built(load_shipped, geometries_d
 
 
 def test_default_limit_and_bad_limits():
-    """None means the default limit in triangulate() as in Room.mesh(); the check comes
-    before any meshing (1.6e7 triangles would take minutes)."""
-    for build in (lambda **kw: triangulate(SQUARE, **kw), SQUARE.mesh):
-        with pytest.raises(MeshError, match=r"limit of 2,000,000.*--max-cells N"):
-            build(max_area=1e-9)
-        with pytest.raises(MeshError, match=r"limit of 2,000,000"):
-            build(max_area=1e-9, max_cells=None)
+    """None means the default limit in triangulate(); the check comes before any meshing
+    (1.6e7 triangles would take minutes)."""
+    with pytest.raises(MeshError, match=r"limit of 2,000,000.*--max-cells N"):
+        triangulate(SQUARE, max_area=1e-9)
+    with pytest.raises(MeshError, match=r"limit of 2,000,000"):
+        triangulate(SQUARE, max_area=1e-9, max_cells=None)
     for bad in (0, -5, float("nan"), True, "100"):
         with pytest.raises(MeshError, match="max_cells must be a positive number"):
             triangulate(SQUARE, max_cells=bad)

@@ -9,6 +9,7 @@ import shapely
 from pedmesh import BoundaryKind, MeshError, TriMesh
 
 from pathlib import Path
+from pedmesh.mesh import triangulate
 
 SHIPPED = sorted(p for p in (Path(__file__).resolve().parents[2] / "geometries").iterdir()
                  if p.suffix in (".json", ".geojson", ".dxf"))
@@ -17,7 +18,7 @@ SHIPPED = sorted(p for p in (Path(__file__).resolve().parents[2] / "geometries")
 @pytest.fixture(scope="module", params=[p.name for p in SHIPPED])
 def room_and_mesh(request, load_shipped):
     room = load_shipped(request.param)
-    return room, room.mesh()
+    return room, triangulate(room)
 
 
 def test_area_identity(room_and_mesh):
@@ -138,8 +139,8 @@ def test_triangles_counter_clockwise(room_and_mesh):
 
 def test_exit_grading_refines_near_exits(load_shipped):
     room = load_shipped("example2.json")
-    uniform = room.mesh(max_area=2.0)
-    graded = room.mesh(max_area=2.0, exit_size=0.3)
+    uniform = triangulate(room, max_area=2.0)
+    graded = triangulate(room, max_area=2.0, exit_size=0.3)
     near = lambda m: np.hypot(m.centroids[:, 0] - 100, m.centroids[:, 1] - 25) < 6  # noqa: E731
     assert graded.areas[near(graded)].mean() < 0.25 * uniform.areas[near(uniform)].mean()
     assert graded.min_angle >= 28
@@ -153,9 +154,9 @@ def test_exit_grading_refines_near_exits(load_shipped):
 def test_mesh_arguments_are_checked(load_shipped):
     room = load_shipped("example2.json")
     with pytest.raises(MeshError, match="max_area"):
-        room.mesh(max_area=-1)
+        triangulate(room, max_area=-1)
     with pytest.raises(MeshError, match="min_angle"):
-        room.mesh(min_angle=40)
+        triangulate(room, min_angle=40)
 
 
 def test_trimesh_rejects_bad_arrays():

@@ -18,6 +18,7 @@ import pytest
 
 from pedmesh.cli import main
 from pedmesh.run.output import RunWriter, run_status
+from pedmesh.mesh import triangulate
 
 FAST_GEOMETRIES = ["corridor_bottleneck.json", "l_shaped.json", "pillar_hall.json", "foyer.svg"]
 ALL_GEOMETRIES = FAST_GEOMETRIES + ["example1.json", "example2.json", "example3.json"]
@@ -199,7 +200,7 @@ def test_full_disk_is_a_failure_without_part_files(geometries_dir, tmp_path, mon
     room = pedmesh.load_room(geometries_dir / "corridor_bottleneck.json")
     out = tmp_path / "full"
     with pytest.raises(OSError) as info:
-        run_model(room, room.mesh(), "sfm", out_dir=out, quiet=True, t_end=5.0)
+        run_model(room, triangulate(room), "sfm", out_dir=out, quiet=True, t_end=5.0)
     assert info.value.errno == errno.ENOSPC
     s = json.loads((out / "summary.json").read_text())
     assert s["status"] == "failed" and "No space left" in s["error"]
@@ -264,13 +265,13 @@ def test_continuum_frames_at_the_requested_times(geometries_dir, tmp_path, model
 
 
 def test_step_limit_lands_exactly_and_never_overshoots(load_shipped):
-    from pedmesh.macro.run import MacroRun
-    from pedmesh.run.models import MODELS
+    from pedmesh.models.continuum.adapter import MacroRun
+    from pedmesh.models import get_model
 
     room = load_shipped("l_shaped.json")
-    mesh = room.mesh(max_area=2.0)
-    run = MODELS["pw"](room, mesh, {})
-    ref = MODELS["pw"](room, mesh, {})
+    mesh = triangulate(room, max_area=2.0)
+    run = get_model("pw").build(room, mesh, {})
+    ref = get_model("pw").build(room, mesh, {})
     assert isinstance(run, MacroRun)
     targets = [0.37, 0.5, 1.0, 1.01, 2.0]
     for target in targets:
@@ -292,11 +293,11 @@ def test_dense_frames_interpolate_the_states_around_them(geometries_dir, tmp_pat
 
     from pedmesh.io import read_pvd_index
     from pedmesh.io.rooms import load_room
-    from pedmesh.run.models import MODELS
+    from pedmesh.models import get_model
 
     room = load_room(geometries_dir / "l_shaped.json")
-    mesh = room.mesh(max_area=2.0)
-    run = MODELS["eos"](room, mesh, {})
+    mesh = triangulate(room, max_area=2.0)
+    run = get_model("eos").build(room, mesh, {})
     for _ in range(3):
         run.step()
     t0, Q0 = run._prev

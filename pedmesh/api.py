@@ -1,0 +1,97 @@
+"""The Python API for scripts and notebooks: :func:`simulate` runs a model on a room and
+returns its results; :func:`build` gives the model ready to step.
+
+>>> import pedmesh
+>>> result = pedmesh.simulate("geometries/example2.json", model="eos")  # doctest: +SKIP
+>>> result.times                                                     # doctest: +SKIP
+{'T50': 84.1, 'T90': 105.6, 'T100': 123.1}
+>>> t, n_out = result.evacuation                                     # doctest: +SKIP
+
+Without ``out_dir`` nothing is written: the curves, frames and trajectories stay in memory
+(:class:`~pedmesh.run.memory.MemoryResult`). With ``out_dir`` the run writes its folder as
+``pedmesh run`` does and the result reads it (:class:`~pedmesh.run.results.RunResult`);
+both have ``summary``, ``evacuation``, ``outflow`` and ``exit_times``.
+
+The stepping form builds the model and leaves the loop to you::
+
+    run = pedmesh.build("geometries/example2.json", model="sfm", preset="paper")
+    while not run.done and run.t < 60.0:
+        run.step()
+    print(run.t, run.evacuated, run.remaining)   # [s], [ped], [ped]
+    run.sim.positions                            # (the SFM's state: positions [m], ...)
+
+``run`` is the model's :class:`~pedmesh.models.protocol.RunModel`: ``t``, ``evacuated``,
+``remaining``, ``done``, ``step()``, ``exit_counts()``, ``summary()``, and the model's own
+state (``run.sim`` for the social force model, ``run.state.Q`` and ``run.cell_fields()``
+for the continuum models).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping
+
+from .errors import ParameterError
+
+__all__ = ["simulate", "build"]
+
+
+def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None):
+    from .geometry import Room
+    from .io import load_room
+    from .mesh import triangulate
+
+    geometry = None
+    if isinstance(room, (str, Path)):
+        geometry = str(room)
+        room = load_room(room)
+    elif not isinstance(room, Room):
+        raise ParameterError(f"room must be a Room or the path of a room file, got "
+                             f"{type(room).__name__}")
+    if mesh is None:
+        mesh = triangulate(room, **dict(mesh_options or {}))
+    elif mesh_options:
+        raise ParameterError("give either a mesh or mesh_options, not both")
+    return room, mesh, geometry
+
+
+def build(room, model: str = "sfm", *, preset: str | None = None,
+          params: Mapping[str, Any] | None = None, mesh=None,
+          mesh_options: Mapping[str, Any] | None = None, **options: Any):
+    """Model ``model`` on ``room`` (a :class:`~pedmesh.geometry.Room` or a room file),
+    built with the parameters of ``preset`` (default: the room file's, else
+    ``validated``) and ``params`` on top, ready to :meth:`step`. ``mesh``: a
+    :class:`~pedmesh.mesh.TriMesh` of the room (default: triangulated with
+    ``mesh_options``, see :func:`pedmesh.mesh.triangulate`). ``options``: the model
+    options its registry entry lists (e.g. ``seed`` for the social force model)."""
+    from .run.driver import build_model
+
+    room, mesh, _ = _room_and_mesh(room, mesh, mesh_options)
+    return build_model(room, mesh, model, preset=preset, overrides=params, **options)
+
+
+def simulate(room, model: str = "sfm", *, preset: str | None = None,
+             params: Mapping[str, Any] | None = None, out_dir: str | Path | None = None,
+             t_end: float = 1000.0, mesh=None, mesh_options: Mapping[str, Any] | None = None,
+             quiet: bool = True, **options: Any):
+    """Run ``model`` on ``room`` until everyone has left or ``t_end`` [s] and return the
+    result (see the module docstring). ``params``: parameter values by name (see ``pedmesh
+    presets`` and the parameter tables of the docs); ``out_dir``: write the run folder
+    there (None: keep everything in memory); ``quiet``: no progress bar. Errors are
+    :class:`~pedmesh.errors.PedmeshError` with one line naming the problem."""
+    from .run.driver import execute, plan_run
+    from .run.memory import MemoryWriter
+    from .run.output import RunWriter
+    from .run.results import RunResult
+
+    room, mesh, geometry = _room_and_mesh(room, mesh, mesh_options)
+    plan = plan_run(room, mesh, model, overrides=params, t_end=t_end, geometry=geometry,
+                    mesh_options=dict(mesh_options or {}), model_options=options,
+                    preset=preset)
+    if out_dir is None:
+        writer = MemoryWriter(plan.header, exit_names=mesh.exit_names)
+        execute(plan, writer, quiet=quiet, where="the result in memory")
+        return writer.result()
+    writer = RunWriter(Path(out_dir), plan.header, exit_names=mesh.exit_names)
+    execute(plan, writer, quiet=quiet, where=str(out_dir))
+    return RunResult.load(out_dir)

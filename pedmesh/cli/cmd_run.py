@@ -1,0 +1,106 @@
+"""``pedmesh run``: simulate a crowd in a room with one model and write the results."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .cmd_mesh import add_mesh_args, mesh_options
+from .cmd_presets import add_preset_arg
+
+HELP = "simulate an evacuation with a model (sfm, ...) and write the results"
+DESCRIPTION = """\
+Simulate the crowd of a room's start areas until everyone has left (or --t-end) and write
+into the output directory, as the run goes:
+
+  summary.json         model, status, n_initial, n_evacuated, t_evac_50/90/100 [s],
+                       steps, dt, wall time, every parameter used and the run's settings
+  evacuation.csv       t,evacuated (cumulative number out), every 0.1 s
+  outflow.csv          t and the flow [ped/s] through each exit since the previous row
+  density.pvd          density on the mesh [ped/m^2], one frame per output interval
+  pedestrians.pvd      (particle models) positions with velocity, speed, local density
+  trajectories.txt     (particle models) id frame x y at --trajectory-rate frames/s, for
+                       PedPy's load_trajectory_from_txt; a leaver's last row is on the exit
+  trajectories.sqlite  (particle models) the same in JuPedSim's SQLite format, for
+                       pedpy.load_trajectory_from_jupedsim_sqlite
+  exits.csv            (particle models) id,exit,t of everyone who left
+
+The run owns its output directory: a directory holding an earlier pedmesh run is cleared
+first (its files only), a non-empty directory that is not a pedmesh run is refused, and so
+is a directory another run is writing into. An interrupted run (Ctrl-C, kill) keeps
+everything written up to then; its summary says 'interrupted', a failed one 'failed' with
+the error. Parameters are set with --param NAME=VALUE (repeatable); the summary lists them.
+
+examples:
+  pedmesh run geometries/example2.json --model sfm --out runs/ex2-sfm
+  pedmesh run geometries/example3.json --model sfm --param dt=0.005 --param A=1500
+  pedmesh run geometries/corridor_bottleneck.json --model rdue --preset weidmann
+"""
+
+
+def add_args(p: argparse.ArgumentParser) -> None:
+    from ..models import model_names
+
+    p.add_argument("geometry", metavar="GEOMETRY", help="room file (.json, .geojson or .dxf)")
+    p.add_argument("--model", default="sfm",
+                   help=f"model to run (default: sfm; available: {', '.join(model_names())})")
+    p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                   help="set a model or numerics parameter (repeatable)")
+    p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
+                   help="stop at this simulated time in s if people remain (default: 1000)")
+    add_preset_arg(p)
+    add_mesh_args(p)
+    p.add_argument("--out", metavar="DIR", default=None,
+                   help="output directory (default: runs/<geometry>-<model>)")
+    p.add_argument("--trajectory-rate", type=float, default=10.0, metavar="FPS",
+                   help="(particle models) frames per second of the trajectory files "
+                        "(default: 10)")
+    p.add_argument("--static-routes", action="store_true",
+                   help="(particle models) keep the initial routes instead of re-solving "
+                        "them from the density")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from ..models import get_model
+    from ..parameters import parse_overrides
+    from ..run import RunInterrupted, run_model
+    from .._signals import stop_on_signals
+    from .cmd_mesh import mesh_from_args
+
+    entry = get_model(args.model)  # fail fast on an unknown model
+    name = entry.name
+    overrides = parse_overrides(args.param)
+    room, mesh = mesh_from_args(args)
+    out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-{name}"
+    from ..errors import ParameterError
+
+    model_options: dict = {}
+    if args.static_routes:
+        if "static_routes" not in entry.options:
+            raise ParameterError(f"--static-routes does not apply to model '{name}'")
+        model_options["static_routes"] = True
+    if args.trajectory_rate != 10.0:
+        if "trajectory_rate" not in entry.options:
+            raise ParameterError(f"--trajectory-rate does not apply to model '{name}'")
+        model_options["trajectory_rate"] = args.trajectory_rate
+    try:
+        with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current step
+            s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
+                          quiet=args.quiet, geometry=str(args.geometry),
+                          mesh_options=mesh_options(args),
+                          model_options=model_options, preset=args.preset)
+    except RunInterrupted as exc:
+        print(f"pedmesh: {exc}", file=sys.stderr)
+        return 130
+
+    def fmt(v):
+        return "not reached" if v is None else f"{v:.1f} s"
+
+    print(f"{name} on '{room.name}': {s['n_evacuated']:.0f} of {s['n_initial']:.0f} out "
+          f"({s['status']}), T50 {fmt(s['t_evac_50'])}, T90 {fmt(s['t_evac_90'])}, "
+          f"T100 {fmt(s['t_evac_100'])}; {s['steps']} steps in {s['wall_time_s']:.1f} s")
+    print(f"results in {out}")
+    return 0

@@ -1,0 +1,332 @@
+"""The continuum models behind the run protocol (:class:`MacroRun`), and their registry
+entries (:func:`register_continuum_model`: one :class:`ContinuumEntry` per model, in the
+one registry of :mod:`pedmesh.models.registry`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import functools
+from dataclasses import dataclass, fields
+from typing import Any, Callable
+
+import numpy as np
+import shapely
+
+from ... import parameters as P
+from ...analysis.evacuation import evacuation_times_from_curve
+from ...errors import ParameterError, SimulationError
+from ..registry import CONTINUUM, ModelEntry, get_model, register_model
+from .base import MacroModel
+from .solver import FVController, FVOptions, FVSolver, FVState
+
+__all__ = ["MacroRunOptions", "MacroRun", "ContinuumEntry", "register_continuum_model",
+           "macro_model", "initial_density", "area_densities"]
+
+#: [s] the step of the clock while every pedestrian is still within their premovement
+WAIT_STEP = 0.5
+
+
+@dataclass(frozen=True, kw_only=True)
+class MacroRunOptions:
+    """Output and stopping settings of a continuum run (declared in
+    :mod:`pedmesh.parameters`): ``output_interval``, ``sample_interval``, ``empty_below``
+    (the room counts as empty when fewer remain; t_evac_100 is that moment) and
+    ``dense_frames`` (1: steps run freely and each frame is the linear interpolation in
+    time of the two states around its time, conservative and positive like the states;
+    0: steps are shortened to land on every frame time, about 8 % more steps at 1 s
+    frames)."""
+
+    output_interval: float = P.field("output_interval")
+    sample_interval: float = P.field("sample_interval")
+    empty_below: float = P.field("empty_below")
+    dense_frames: int = P.field("dense_frames")
+
+    def __post_init__(self) -> None:
+        P.check_fields(self)
+
+
+def initial_density(room, mesh) -> np.ndarray:
+    """Cell averages [ped/m^2] of the room's start areas: each area's density (1/spacing^2,
+    density, or count/area) times the covered fraction of every triangle."""
+    return np.sum(area_densities(room, mesh), axis=0) if room.start_areas else \
+        np.zeros(mesh.n_triangles)
+
+
+def area_densities(room, mesh) -> list[np.ndarray]:
+    """:func:`initial_density` of each start area separately (a list of (m,) arrays)."""
+    out = []
+    tris = shapely.polygons(mesh.points[mesh.triangles])
+    for s in room.start_areas:
+        rho = np.zeros(mesh.n_triangles)
+        shape = s.shape.intersection(room.walkable)
+        if s.spacing is not None:
+            d = 1.0 / s.spacing**2
+        elif s.density is not None:
+            d = s.density
+        else:
+            d = s.count / shape.area
+        cand = shapely.intersects(tris, shape)
+        frac = np.zeros(mesh.n_triangles)
+        frac[cand] = shapely.area(shapely.intersection(tris[cand], shape)) / mesh.areas[cand]
+        rho += d * np.clip(frac, 0.0, 1.0)
+        out.append(rho)
+    return out
+
+
+def _split(overrides: dict[str, Any], targets: dict[str, set[str]]) -> dict[str, dict]:
+    known = set().union(*targets.values())
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise ParameterError(f"unknown parameter '{unknown[0]}' "
+                             f"(known: {', '.join(sorted(known))})")
+    return {k: {n: v for n, v in overrides.items() if n in names} for k, names in targets.items()}
+
+
+class MacroRun:
+    """A finite-volume continuum model run through ``pedmesh run``."""
+
+    def __init__(self, room, mesh, overrides: dict[str, Any], *, model: str,
+                 rho0: np.ndarray | None = None) -> None:
+        entry = get_model(model)
+        if not isinstance(entry, ContinuumEntry):
+            raise ParameterError(f"model '{model}' is not a continuum model")
+        model_params = entry.model_parameters
+        parts = _split(overrides, {
+            "model": {p.name for p in model_params},
+            "fv": {f.name for f in fields(FVOptions)},
+            "run": {f.name for f in fields(MacroRunOptions)},
+        })
+        # every value is checked (FVOptions and MacroRunOptions check their own) before
+        # anything is built
+        self.fv_options = FVOptions(**parts["fv"])
+        self.options = MacroRunOptions(**parts["run"])
+        self.model = entry.physics(**P.check_values(parts["model"], model_params))
+        self.name = entry.name
+        self.mesh = mesh
+        #: things the user should know about this run (e.g. a calibration for other parameters)
+        self.warnings = list(getattr(self.model, "warnings", []))
+        self.solver = FVSolver(mesh, self.model, self.fv_options)
+        #: start areas with a premovement time or arrivals (entrances): (their density (m,)
+        #: [ped/m^2], the distribution or schedule, their number of people [ped]); their
+        #: people appear where they stand, at rest, as its CDF grows (a delayed source)
+        self._delayed: list[tuple[np.ndarray, Any, float]] = []
+        if rho0 is None:
+            if room is None or not room.start_areas:
+                raise SimulationError("no initial crowd: the room has no start areas")
+            parts = area_densities(room, mesh)
+            rho0 = np.zeros(mesh.n_triangles)
+            for a, rho_a in zip(room.start_areas, parts):
+                # an entrance's people arrive by its schedule (the same delayed source)
+                delay = a.arrivals if a.arrivals is not None else a.premovement
+                if delay is None:
+                    rho0 += rho_a
+                else:
+                    rho0 += rho_a * float(delay.cdf(0.0))
+                    self._delayed.append((rho_a, delay, self.solver.mass(rho_a[:, None])))
+            self._note_population(room)
+        self.state = FVState(self.model.initial_state(rho0))
+        self.controller = FVController(self.solver, self.state)
+        self._n0 = self.solver.mass(self.state.Q) + self.waiting
+        if self._n0 <= 0:
+            raise SimulationError("the initial crowd is empty")
+        self.sample_interval = self.options.sample_interval
+        self.output_interval = self.options.output_interval
+        self.max_mass_error = 0.0
+        self._curve_t = [0.0]
+        self._curve_n = [0.0]
+
+    # ------------------------------------------------------------------ contract
+    @property
+    def t(self) -> float:
+        return self.state.t
+
+    @property
+    def n_initial(self) -> float:
+        return self._n0
+
+    @property
+    def evacuated(self) -> float:
+        return float(self.state.outflow.sum())
+
+    @property
+    def remaining(self) -> float:
+        """Pedestrians [ped] inside: walking, and still waiting out their premovement."""
+        return self.solver.mass(self.state.Q) + self.waiting
+
+    @property
+    def waiting(self) -> float:
+        """Pedestrians [ped] who have not started yet (premovement)."""
+        t = self.state.t
+        return float(sum(n * (1.0 - float(d.cdf(t))) for _, d, n in self._delayed))
+
+    def _note_population(self, room) -> None:
+        """Warnings for what a continuum model cannot represent of the start areas."""
+        for a in room.start_areas:
+            for key, what in (("speed", "one free speed U_f"), ("radius", "no body radii"),
+                              ("exits", "the quickest route to any exit")):
+                if getattr(a, key) is not None:
+                    self.warnings.append(
+                        f"start area '{a.name}': its '{key}' is not used; the continuum "
+                        f"model has {what}")
+
+    @property
+    def done(self) -> bool:
+        return self.remaining < self.options.empty_below
+
+    def step(self, t_limit: float = math.inf) -> None:
+        """One step that never passes ``t_limit`` [s] (the next time the driver records
+        something): it ends exactly on ``t_limit`` where the CFL step would pass it, and
+        one that would stop short of it by under a tenth of a step is halved so that no
+        sliver of a step follows (see :meth:`FVController.advance`; steps are only ever
+        shortened). ``math.inf`` (the default): the plain CFL step, bit for bit as before.
+        A ``t_limit`` that is NaN or not after :attr:`t` is a ValueError."""
+        self._prev = (self.state.t, self.state.Q.copy())
+        t0 = self.state.t
+        if self._delayed and self.solver.mass(self.state.Q) <= 1e-12 * self._n0:
+            # nobody walks yet (all within their premovement): only the clock moves, by at
+            # most WAIT_STEP s (a step's release is applied at its end)
+            self.state.t = min(t_limit, t0 + WAIT_STEP)
+        else:
+            self.controller.advance(None if t_limit == math.inf else t_limit)
+        if self._delayed:  # the people whose premovement ended within the step start, at rest
+            t1 = self.state.t
+            add = np.zeros(len(self.state.Q))
+            for rho, d, _ in self._delayed:
+                add += rho * float(d.cdf(t1) - d.cdf(t0))
+            self.state.Q[:, 0] += add
+            self.controller.mass0 += self.solver.mass(add[:, None])
+        self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
+        self._curve_t.append(self.state.t)
+        self._curve_n.append(self.evacuated)
+
+    def outflow_rates(self) -> np.ndarray:
+        """Flow [ped/s] through each exit in the last step."""
+        return self.state.last_exit_flux
+
+    def exit_counts(self) -> np.ndarray:
+        """Pedestrians [ped] out through each exit so far (the integrated boundary flux)."""
+        return np.array(self.state.outflow, float)
+
+    def record(self, writer, final: bool = False) -> None:
+        """Nothing beyond the driver's samples and frames (the run contract's hook)."""
+
+    def parameters(self) -> dict[str, Any]:
+        return {**self.model.parameters(), **dataclasses.asdict(self.fv_options),
+                "cfl": self.solver.cfl, "exit": self.solver.exit_kind,
+                "implicit_pressure": self.solver.implicit is not None,
+                "stages": self.solver.stages,
+                **dataclasses.asdict(self.options)}
+
+    @property
+    def dense_frames(self) -> bool:
+        """Whether the driver lets steps run past frame times and asks for
+        :meth:`write_frame_at` instead (MacroRunOptions.dense_frames)."""
+        return bool(self.options.dense_frames)
+
+    def state_at(self, t: float) -> np.ndarray:
+        """The cell state at time ``t`` [s] within the last step: the linear interpolation
+        in time of the states at its start and end (the current state at its end)."""
+        t1, Q = self.state.t, self.state.Q
+        prev = getattr(self, "_prev", None)
+        if prev is None or t >= t1 or prev[0] >= t1:
+            return Q
+        t0, Q0 = prev
+        if not t0 <= t:
+            raise ValueError(f"t = {t!r} s is not within the last step [{t0}, {t1}] s")
+        w = (t - t0) / (t1 - t0)
+        return (1.0 - w) * Q0 + w * Q
+
+    def cell_fields(self, Q: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Density [ped/m^2] and velocity [m/s] per cell (of the current state, or of
+        ``Q``)."""
+        if Q is None:
+            Q = self.state.Q
+        rho = Q[:, 0]
+        if self.model.n_vars == 1:  # RDUE: u = U_e(rho) e
+            speed = self.model.speed(rho)
+            vel = speed[:, None] * self.solver.e_cell
+        else:
+            vel = self.model.velocity(Q)
+        return {"rho": rho, "velocity": vel}
+
+    def write_frame(self, writer, frame: int) -> None:
+        self.write_frame_at(writer, frame, self.state.t)
+
+    def write_frame_at(self, writer, frame: int, t: float) -> None:
+        """Write frame ``frame`` at time ``t`` [s] within the last step (see
+        :meth:`state_at`)."""
+        f = self.cell_fields(self.state_at(t))
+        writer.density_frame(t, self.mesh, point_data={"phi": self.solver.phi},
+                             cell_data={"rho": f["rho"], "velocity": f["velocity"]})
+
+    def summary(self) -> dict[str, Any]:
+        n0 = self._n0
+        t = np.asarray(self._curve_t)
+        e = np.asarray(self._curve_n)
+        t50, t90 = evacuation_times_from_curve(t, e, n0, (0.5, 0.9))
+        done = np.flatnonzero(n0 - e < self.options.empty_below)
+        t100 = float(t[done[0]]) if len(done) else None
+        return {
+            "n_initial": n0,
+            "n_evacuated": self.evacuated,
+            "t_evac_50": t50,
+            "t_evac_90": t90,
+            "t_evac_100": t100,
+            "steps": self.state.steps,
+            "steps_retried": self.controller.retried,
+            "dt": float(np.mean(np.diff(t))) if len(t) > 1 else None,
+            "exits": {n: float(v) for n, v in zip(self.mesh.exit_names, self.state.outflow)},
+            "mass_error_max": self.max_mass_error,
+            "exit_condition": self.solver.exit_kind,
+        }
+
+
+# ---------------------------------------------------------------------- registration
+#: the numerical and output parameters every continuum model takes
+NUMERICS: tuple[P.Parameter, ...] = tuple(
+    f.metadata["parameter"] for cls in (FVOptions, MacroRunOptions) for f in fields(cls))
+
+
+#: the desired-speed law's parameters (:mod:`pedmesh.speed`)
+SPEED_PARAMETERS = ("U_f", "beta", "speed_law", "rho_jam", "gamma_w", "rho_shift",
+                    "speed_table")
+#: the physical parameters of a model with momentum relaxed to the desired velocity
+BASE_PARAMETERS = ("U_f", "beta", "tau", "rho_cut", "u_max") + SPEED_PARAMETERS[2:]
+#: the social force model's Table 1 parameters a model derived from it takes
+SFM_PARAMETERS = ("A", "B", "k", "kappa", "m", "r")
+
+
+@dataclass(frozen=True)
+class ContinuumEntry(ModelEntry):
+    """A continuum model's registry entry: besides :class:`~pedmesh.models.ModelEntry`'s,
+    ``physics(**parameters)``, the :class:`~pedmesh.models.continuum.base.MacroModel` the
+    finite-volume core solves, and ``model_parameters``, those of its parameters that go
+    to it (the others are the solver's and the run's: :data:`NUMERICS`)."""
+
+    physics: Callable[..., MacroModel] | None = None
+    model_parameters: tuple[P.Parameter, ...] = ()
+
+
+def register_continuum_model(name: str, physics: Callable[..., MacroModel],
+                             parameters: tuple[str | P.Parameter, ...], *,
+                             aliases: tuple[str, ...] = (), description: str = "",
+                             replace: bool = False) -> ContinuumEntry:
+    """Register the continuum model ``physics(**parameters) -> MacroModel`` under ``name``:
+    ``parameters`` are its physical parameters (declarations, or the names of declared
+    ones); every continuum model also takes the solver's and the run's (:data:`NUMERICS`).
+    ``pedmesh run --model NAME`` then solves it with the finite-volume core."""
+    own = tuple(p if isinstance(p, P.Parameter) else P.get(p) for p in parameters)
+    return register_model(ContinuumEntry(
+        name=name, build=functools.partial(MacroRun, model=name), parameters=own + NUMERICS,
+        scale=CONTINUUM, options=frozenset({"rho0"}), random=False, aliases=aliases,
+        description=description, physics=physics, model_parameters=own), replace=replace)
+
+
+def macro_model(name: str, **params) -> MacroModel:
+    """The physics of continuum model ``name`` with the given parameters (the others at
+    their defaults), as the finite-volume core solves it."""
+    entry = get_model(name)
+    if not isinstance(entry, ContinuumEntry):
+        raise ParameterError(f"unknown continuum model '{name}'")
+    return entry.physics(**params)

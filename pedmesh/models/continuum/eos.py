@@ -1,0 +1,87 @@
+"""``eos``: a Payne-Whitham-type model whose pressure is the social force model's measured
+equation of state.
+
+::
+
+    rho_t + div(rho u) = 0
+    (rho u)_t + div(rho u (x) u + p(rho) I) = rho (U_e(rho) e - u) / tau
+
+with ``p(rho)`` the virial pressure per unit mass of the SFM measured by
+``pedmesh calibrate`` (:mod:`pedmesh.calibration`) and read from a calibration file (default:
+the one shipped for the default parameters, Table 1). The default exit condition is the exact
+Godunov flux into empty space (``exit=godunov``), which is consistent with any barotropic law.
+
+The calibration holds for the SFM parameters it was measured with; when the run's SFM
+parameters (given with ``--param A=...`` etc.) differ, the model says so in
+:attr:`EquationOfStateModel.warnings` (printed by ``pedmesh run`` and kept in summary.json).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ...errors import ParameterError
+from .barotropic import BarotropicModel, PressureLaw
+from .adapter import BASE_PARAMETERS, SFM_PARAMETERS, register_continuum_model
+from .eos_file import DEFAULT_EOS, load_eos
+from ...parameters import DEFAULTS as D
+
+__all__ = ["EquationOfStateModel"]
+
+#: SFM parameters a calibration depends on (tau is also the continuum's relaxation time)
+SFM_KEYS = ("A", "B", "k", "kappa", "m", "r", "tau")
+
+
+class EquationOfStateModel(BarotropicModel):
+    """Barotropic model with the calibrated SFM pressure (see module docstring)."""
+
+    #: u_max = 1.5 U_f: the measured pressure is weak, and crowd edges faster than 1.5 U_f
+    #: are a film that only shortens the time step (Example 2: T50 and T90 the same to
+    #: 0.01 s with 1.3, 1.5 and 2.5 U_f; the semi-implicit run takes 987 steps with 1.5 U_f
+    #: against 1,447 with 2.5 U_f)
+    default_u_max = 1.5
+
+    def __init__(self, calibration: str | None = None, *, U_f: float = D['U_f'],
+                 beta: float = D['beta'], tau: float = D['tau'],
+                 rho_cut: float = D['rho_cut'], u_max: float | None = None,
+                 speed_law: str = D['speed_law'], rho_jam: float = D['rho_jam'],
+                 gamma_w: float = D['gamma_w'], rho_shift: float = D['rho_shift'],
+                 speed_table: str = D['speed_table'], **sfm) -> None:
+        unknown = set(sfm) - set(SFM_KEYS)
+        if unknown:
+            raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
+        cal = load_eos(calibration)
+        fit = cal["fit"]
+        law = PressureLaw.table(fit["rho"], fit["p"], fit["dp"])
+        super().__init__("eos", law, U_f=U_f, beta=beta, tau=tau, rho_cut=rho_cut,
+                         u_max=u_max, default_exit="godunov", speed_law=speed_law,
+                         rho_jam=rho_jam, gamma_w=gamma_w, rho_shift=rho_shift,
+                         speed_table=speed_table)
+        self.calibration = str(calibration) if calibration else str(DEFAULT_EOS)
+        self.calibration_parameters = dict(cal.get("parameters", {}))
+        # the SFM this run stands for: Table 1 defaults with the overrides given
+        run_sfm = {k: float(sfm.get(k, D[k])) for k in SFM_KEYS}
+        run_sfm["tau"] = float(tau)
+        self.sfm = run_sfm
+        self.warnings: list[str] = []
+        diff = [f"{k}={run_sfm[k]:g} (calibrated for {self.calibration_parameters[k]:g})"
+                for k in SFM_KEYS if k in self.calibration_parameters
+                and not math.isclose(run_sfm[k], float(self.calibration_parameters[k]),
+                                     rel_tol=1e-9)]
+        if diff:
+            self.warnings.append(
+                f"eos: the calibration {self.calibration} was measured for other social force "
+                f"parameters: {', '.join(diff)}; recalibrate with 'pedmesh calibrate --param "
+                "NAME=VALUE ... -o eos.json' and run with --param calibration=eos.json")
+        self.rho_range = (float(fit["rho"][0]), float(fit["rho"][-1]))
+
+    def parameters(self) -> dict:
+        return {"calibration": self.calibration, **super().parameters(),
+                **{k: v for k, v in self.sfm.items() if k != "tau"}}
+
+
+register_continuum_model("eos", EquationOfStateModel,
+                         BASE_PARAMETERS + SFM_PARAMETERS + ("calibration",),
+                         aliases=("calibrated",),
+                         description="Payne-Whitham-type with the social force model's measured "
+                                     "equation of state")

@@ -1,0 +1,556 @@
+"""The social force model on a triangle mesh (paper eq. sf, with the eikonal route choice).
+
+.. math::
+
+    \\frac{dx_i}{dt} = v_i, \\qquad
+    m\\frac{dv_i}{dt} = m\\frac{U_e(\\rho_i) e(x_i) - v_i}{\\tau}
+        + \\sum_{j \\ne i} f_{ij} + \\sum_{\\text{walls}} f_i^{wall}
+
+* ``f_ij = [A exp((r_ij - d)/B) + k g(r_ij - d)] n_ij + kappa g(r_ij - d) <v_j - v_i, t_ij> t_ij``
+  (evaluated once per pair, cut off at ``force_cutoff``);
+* walls: the same form for every wall and obstacle edge of the mesh (distance to the
+  segment, a shared corner counted once), with friction ``-kappa g(r_i - d) <v_i, t> t``
+  against the resting wall. The paper prints ``+kappa ...`` for the wall friction, which
+  would accelerate a pedestrian sliding along a wall; the pair term with v_wall = 0 gives
+  the minus sign used here. Exit edges exert no force;
+* ``U_e = U_f g(rho)`` (the speed law of :mod:`pedmesh.speed`, the paper's ``exp(-beta
+  rho)`` by default) with ``rho`` the Gaussian kernel density (eq3, eq4, the
+  pedestrian itself included), ``e = -grad(phi)/|grad(phi)|`` with ``|grad phi| = 1/U_e``
+  solved on the mesh from the kernel density at the vertices, every ``route_interval`` s;
+* Shu-Osher SSP-RK3 in time; after each step a pedestrian whose step crossed a wall is
+  reflected (displacement and velocity), and one whose step crossed an exit is removed
+  with its exit time (interpolated within the step) and exit.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ...errors import SimulationError
+from ...mesh.triangle_mesh import TriMesh
+from .params import SFMNumerics, SocialForceParams
+from .walls import WallSet
+
+__all__ = ["Simulation", "PAIR_SKIN"]
+
+#: Verlet skin [m] of the per-step pair list (rebuilt within a step if anyone moves more
+#: than half of it)
+PAIR_SKIN = 0.2
+#: [m] free gap between an arriving pedestrian's body and everyone else's (entrances)
+ENTRANCE_GAP = 0.05
+
+
+@dataclass
+class _Timers:
+    forces: float = 0.0
+    settle: float = 0.0
+    routing: float = 0.0
+    steps: int = 0
+    routes: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+class Simulation:
+    """A social force simulation on a mesh.
+
+    Parameters
+    ----------
+    mesh
+        The room's triangle mesh (``mesh.room`` supplies the start areas if ``positions`` is
+        not given).
+    positions
+        (N, 2) initial positions [m]; default: the room's start areas.
+    velocities
+        (N, 2) initial velocities [m/s]; default: at rest.
+    params
+        Physical parameters (paper Table 1 by default).
+    numerics
+        Time step, routing interval, cut-offs, output intervals.
+    desired_velocity
+        A constant desired velocity (2,) [m/s] replacing ``U_e e`` (e.g. for the paper's
+        Proposition on moments); default: the eikonal route choice.
+    reroute
+        Re-solve the route potential from the current density (default). ``False`` keeps
+        the routes of the initial crowd (static routes).
+    population
+        Per-pedestrian attributes (:class:`pedmesh.population.Population`, in the order of
+        the positions): free speed, body radius (NaN: ``params.U_f``, ``params.r``),
+        premovement time (a pedestrian wants no speed before it), the exits each heads
+        for (one route potential per distinct set of exits) and the arrival times of an
+        entrance's people (:attr:`Population.arrival`; they enter in their start area, on
+        the free spot farthest from everyone, once their time has come and there is room;
+        those of one area in the order of their times). Default: everyone alike, in the
+        room from the start.
+    seed
+        With a seed, each entering person's spot is moved by a uniform random offset of
+        up to ``ENTRANCE_GAP / 2`` in x and y (so that seeds give different realisations
+        of a run with entrances, as jittered start positions do for start areas); None:
+        the lattice spots.
+
+    Raises
+    ------
+    SimulationError
+        A start position is outside the walkable area or two pedestrians overlap by more
+        than ``numerics.overlap_tolerance``.
+    """
+
+    model_name = "sfm"
+
+    def __init__(self, mesh: TriMesh, positions: np.ndarray | None = None,
+                 velocities: np.ndarray | None = None, *,
+                 params: SocialForceParams | None = None,
+                 numerics: SFMNumerics | None = None,
+                 desired_velocity: np.ndarray | None = None,
+                 reroute: bool = True, population=None, seed: int | None = None) -> None:
+        self.mesh = mesh
+        self._rng = None if seed is None else np.random.default_rng(seed)
+        self.params = params or SocialForceParams()
+        self.numerics = numerics or SFMNumerics()
+        p, nm = self.params, self.numerics
+        if positions is None:
+            if mesh.room is None or not mesh.room.start_areas:
+                raise SimulationError("no start positions: give positions or a room with "
+                                      "start areas")
+            positions = mesh.room.initial_positions()
+        x = np.array(positions, dtype=np.float64).reshape(-1, 2)
+        N = len(x)
+        if N == 0:
+            raise SimulationError("no pedestrians to simulate")
+        if not np.all(np.isfinite(x)):
+            raise SimulationError("start positions contain non-finite coordinates")
+        tri = mesh.locate(x)
+        if np.any(tri < 0):
+            i = int(np.flatnonzero(tri < 0)[0])
+            raise SimulationError(
+                f"pedestrian {i} starts at ({x[i, 0]:.3f}, {x[i, 1]:.3f}) m, outside the walkable "
+                "area (outside the room or inside an obstacle)"
+            )
+        self._set_population(population, len(x))
+        v = (np.zeros_like(x) if velocities is None
+             else np.array(velocities, np.float64).reshape(N, 2))
+        if not np.all(np.isfinite(v)):
+            raise SimulationError("initial velocities contain non-finite values")
+        self.n_initial = N
+        self.ids = np.arange(N, dtype=np.int64)
+        present = ~np.isfinite(self.arrival)
+        self._check_overlaps(x[present], self.ids[present])
+        self.n_waiting = 0
+        if not present.all():  # the entrances' people wait outside (rows n.. are unused)
+            self.rad_of, self.u0_of, self.toff_of = (self.rad.copy(), self.u0.copy(),
+                                                     self.toff.copy())
+            self._set_entrances(x)
+            for arr in (x, v, self.rad, self.u0, self._u_eff, self.tpre, self.toff, tri,
+                        self.ids):
+                arr[: int(present.sum())] = arr[present]
+        self.x = x
+        self.v = v
+        self.tri = tri
+        self.n = int(present.sum())
+        self.rho = np.zeros(N)
+        self.t = 0.0
+        self.steps = 0
+        #: exit time [s] of each pedestrian (by id), NaN while inside
+        self.exit_time = np.full(N, np.nan)
+        #: exit number of each pedestrian (by id), -1 while inside
+        self.exit_id = np.full(N, -1, np.int64)
+        #: point [m] on the exit where each pedestrian (by id) crossed it, NaN while inside
+        self.exit_point = np.full((N, 2), np.nan)
+        self.n_reflections = 0
+        self.timers = _Timers()
+        # work arrays
+        self._xs = np.empty_like(x)
+        self._vs = np.empty_like(x)
+        self._F = np.empty_like(x)
+        self._rho_w = np.empty(N)
+        self._e = np.zeros_like(x)  # desired directions (of the last stage)
+        self._exit_of = np.empty(N, np.int64)
+        self._exit_frac = np.empty(N)
+        self._pi = np.empty(max(32 * N, 1024), np.int64)
+        self._pj = np.empty(max(32 * N, 1024), np.int64)
+        self.last_pair_count = 0
+        # neighbour grid over the room: cells at least as large as the pair-list radius (the
+        # force cut-off plus the skin; the density cut-off, plus the skin if the density is
+        # re-evaluated at later stages from the same list)
+        # (bodies larger than r: the cut-offs grow with them, so the cut force stays the same)
+        extra = max(float(self.rad.max()) - p.r, 0.0)
+        self.rc_f = nm.force_cutoff + 2.0 * extra
+        self.rc_d = nm.density_cutoff * p.R
+        self.rc_w = max(nm.force_cutoff - p.r, 1e-6) + extra
+        cell = max(self.rc_f + PAIR_SKIN,
+                   self.rc_d + (PAIR_SKIN if nm.density_stages == 3 else 0.0))
+        x0, y0, x1, y1 = mesh.bounds
+        self._cx0, self._cy0 = x0 - cell, y0 - cell
+        self._cinv = 1.0 / cell
+        self._cnx = int((x1 - x0 + 2 * cell) * self._cinv) + 1
+        self._cny = int((y1 - y0 + 2 * cell) * self._cinv) + 1
+        self._cell_start = np.zeros(self._cnx * self._cny + 1, np.int64)
+        self._cell_order = np.zeros(N, np.int64)
+        self.walls = WallSet.from_mesh(mesh, self.rc_w)
+        # the speed-dependent space requirement (shrink [m], t_space [s]; shrink 0: off)
+        self._space = np.array([p.shrink, p.t_space, p.vision, p.crowd_stretch, p.crowd_knee],
+                               np.float64)
+        self._rs = np.empty(N)
+        self._cf = np.zeros(N)
+        self._ue = np.empty(N)
+        self.width_map = None  # the free width of queueing or crowding (crowd_stretch > 1)
+        self._wmap, self._wgeo = np.zeros((1, 1)), np.zeros(5)
+        if p.crowd_stretch > 1.0:
+            from .crowding import width_map
+
+            if mesh.room is not None:
+                walkable = mesh.room.walkable
+            else:  # a bare mesh: its triangles' union is the walkable area
+                import shapely
+
+                walkable = shapely.union_all(shapely.polygons(mesh.points[mesh.triangles]))
+            self.width_map = width_map(walkable)
+            wm = self.width_map
+            self._wmap = wm.width
+            self._wgeo = np.array([wm.x0, wm.y0, 1.0 / wm.cell, p.queue_width, p.crowd_width])
+        if p.shrink > 0 and p.shrink >= float(self.rad.min()):
+            raise SimulationError(f"parameter 'shrink' ({p.shrink:g} m) must be less than every "
+                                  f"body radius (smallest {float(self.rad.min()):g} m)")
+        self._law = p.kernel_law()  # the desired-speed law (pedmesh.speed)
+        # routes
+        self.reroute = bool(reroute)
+        if desired_velocity is not None:
+            self._const_u = np.asarray(desired_velocity, np.float64).reshape(2)
+            self._use_const = True
+        else:
+            self._const_u = np.zeros(2)
+            self._use_const = False
+        self.phi = np.zeros(mesh.n_points)
+        self._next_route = 0.0
+        if not self._use_const:
+            from ...eikonal import EikonalSolver
+
+            self._solver = EikonalSolver(mesh)
+            # one more solver per distinct set of target exits (pedmesh.population)
+            self._group_solvers = [None] + [EikonalSolver(mesh, exits=list(t))
+                                            for t in self._targets[1:]]
+            self._route()  # sets the packed steering table self._dpack
+        else:
+            from ...eikonal.direction import pack_directions
+
+            # no routes: the packed table only serves its point-in-triangle maps
+            self._dpack = pack_directions(mesh, np.zeros((mesh.n_points, 2)),
+                                          np.zeros((mesh.n_triangles, 2)))
+
+    # ------------------------------------------------------------------ helpers
+    def _set_population(self, pop, N: int) -> None:
+        """Per-pedestrian radius ``rad``, free speed ``u0``, premovement ``tpre`` and route
+        group (``toff``: the group's row offset in the stacked steering tables)."""
+        p = self.params
+        self.rad = np.full(N, p.r)
+        self.u0 = np.full(N, p.U_f)
+        self.tpre = np.zeros(N)
+        self.arrival = np.full(N, np.nan)
+        group = np.zeros(N, np.int64)
+        self._targets: list[tuple[str, ...]] = [()]
+        if pop is not None:
+            for name in ("speed", "radius", "premovement", "target"):
+                if len(getattr(pop, name)) != N:
+                    raise SimulationError(f"the population has {len(getattr(pop, name))} "
+                                          f"{name} values for {N} pedestrians")
+            self.rad = np.where(np.isnan(pop.radius), p.r, pop.radius).astype(float)
+            self.u0 = np.where(np.isnan(pop.speed), p.U_f, pop.speed).astype(float)
+            self.tpre = np.asarray(pop.premovement, float).copy()
+            self.arrival = np.asarray(pop.arrival, float).copy()
+            self._area = np.asarray(pop.area, np.int64)
+            if np.any(self.arrival < 0):
+                raise SimulationError("arrival times must be >= 0")
+            if np.any(self.rad <= 0) or np.any(self.u0 < 0) or np.any(self.tpre < 0):
+                raise SimulationError("body radii must be positive, free speeds and "
+                                      "premovement times >= 0")
+            used = np.unique(pop.target)
+            self._targets = [()] + [pop.targets[g] for g in used if len(pop.targets[g])]
+            remap = {g: (self._targets.index(pop.targets[g]) if len(pop.targets[g]) else 0)
+                     for g in used}
+            group = np.array([remap[g] for g in pop.target], np.int64)
+        self._premovement = bool(np.any(self.tpre > 0))
+        self._u_eff = self.u0.copy()
+        self.toff = group * self.mesh.n_triangles
+        self._tbuf = np.empty(N, np.int64)
+
+    def _check_overlaps(self, x: np.ndarray, ids: np.ndarray) -> None:
+        from scipy.spatial import cKDTree
+
+        tol = self.numerics.overlap_tolerance
+        rmax = float(self.rad.max())
+        lim = 2 * rmax - tol
+        if lim <= 0 or len(x) < 2:
+            return
+        pairs = cKDTree(x).query_pairs(lim, output_type="ndarray")
+        if len(pairs):
+            rad = self.rad[ids]
+            need = rad[pairs[:, 0]] + rad[pairs[:, 1]]
+            d = np.hypot(*(x[pairs[:, 0]] - x[pairs[:, 1]]).T)
+            bad = np.flatnonzero(d < need - tol)
+            if len(bad):
+                k = int(bad[0])
+                i, j = (int(ids[a]) for a in pairs[k])
+                raise SimulationError(
+                    f"pedestrians {i} and {j} overlap: {d[k]:.3f} m apart, bodies need "
+                    f"{need[k]:.3f} m (tolerance {tol} m)"
+                )
+
+    def _set_entrances(self, x: np.ndarray) -> None:
+        """The waiting lines of the entrances and their free spots (a lattice of the start
+        area one body diameter plus ENTRANCE_GAP apart, a radius plus ENTRANCE_GAP off the
+        walls)."""
+        room = self.mesh.room
+        if room is None:
+            raise SimulationError("arrival times need the mesh's room (its start areas)")
+        wait = np.flatnonzero(np.isfinite(self.arrival))
+        self._pending = {}  # area -> ids in the order of arrival
+        self._spots = {}  # area -> (spots (k, 2) [m], their triangles, box corners [m])
+        for a in np.unique(self._area[wait]):
+            ids = wait[self._area[wait] == a]
+            ids = ids[np.argsort(self.arrival[ids], kind="stable")]
+            self._pending[int(a)] = deque(int(i) for i in ids)
+            area = room.start_areas[int(a)]
+            rmax = float(self.rad[ids].max())
+            region = room.walkable.buffer(-(rmax + ENTRANCE_GAP))
+            spots = area.lattice(2 * rmax + ENTRANCE_GAP, region)
+            if len(spots) == 0:
+                raise SimulationError(f"entrance '{area.name}' has no room for a body of radius "
+                                      f"{rmax:g} m away from the walls")
+            tri = self.mesh.locate(spots)
+            keep = tri >= 0
+            spots = spots[keep]
+            # (who can be in the way: everyone within 3 m of the spots' bounding box)
+            self._spots[int(a)] = (spots, tri[keep], spots.min(axis=0) - 3.0,
+                                   spots.max(axis=0) + 3.0)
+        self.n_waiting = len(wait)
+
+    def _admit(self) -> None:
+        """Let in the entrances' people whose time has come, where there is room."""
+        from ...speed import shape
+
+        R = self.params.R
+        w0 = 1.0 / (math.pi * R * R)
+        for a, queue in self._pending.items():
+            spots, stri, lo, hi = self._spots[a]
+            while queue and self.arrival[queue[0]] <= self.t + 1e-9:
+                i = queue[0]
+                n = self.n
+                ri = self.rad_of[i]
+                xs = self.x[:n]
+                near = np.flatnonzero(np.all((xs >= lo) & (xs <= hi), axis=1))
+                if len(near):
+                    d = np.hypot(spots[:, None, 0] - xs[near][None, :, 0],
+                                 spots[:, None, 1] - xs[near][None, :, 1])
+                    gap = (d - self.rad[near][None, :]).min(axis=1) - ri
+                    k = int(np.argmax(gap))
+                    if gap[k] < ENTRANCE_GAP:
+                        break  # no room yet: this one (and those after it) wait
+                    rho = w0 + w0 * float(np.exp(-(d[k] / R) ** 2).sum())
+                else:
+                    k = int(np.argmin(np.hypot(*(spots - spots.mean(axis=0)).T)))
+                    rho = w0
+                queue.popleft()
+                self.x[n] = spots[k]
+                self.tri[n] = stri[k]
+                if self._rng is not None:  # (|offset| < ENTRANCE_GAP: still clear of all)
+                    p = spots[k] + self._rng.uniform(-0.5, 0.5, 2) * ENTRANCE_GAP
+                    t = int(self.mesh.locate(p[None, :])[0])
+                    if t >= 0:
+                        self.x[n], self.tri[n] = p, t
+                self.rad[n], self.u0[n], self.tpre[n] = ri, self.u0_of[i], 0.0
+                self._u_eff[n] = self.u0_of[i]
+                self.toff[n] = self.toff_of[i]
+                self.ids[n] = i
+                self.rho[n] = rho
+                self.n = n + 1
+                e = self._directions(n, n + 1)[0]
+                self._e[n] = e
+                self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
+                self.n_waiting -= 1
+
+    def _directions(self, lo: int, hi: int) -> np.ndarray:
+        """(hi - lo, 2) desired directions of rows ``lo:hi`` (each towards their own exits:
+        a route group's rows of the steering table are the triangle plus its offset)."""
+        out = np.zeros((hi - lo, 2))
+        if self._use_const:
+            out[:] = self._const_u / max(float(np.hypot(*self._const_u)), 1e-300)
+            return out
+        from ...eikonal.direction import _interpolate
+
+        _interpolate(self._dpack, self.tri[lo:hi] + self.toff[lo:hi], self.x[lo:hi], out)
+        return out
+
+    def _build_cells(self) -> None:
+        from . import kernels as K
+
+        K.build_cells(self.x, self.n, self._cx0, self._cy0, self._cinv, self._cnx, self._cny,
+                      self._cell_start, self._cell_order)
+
+    def vertex_density(self) -> np.ndarray:
+        """Gaussian kernel density (eq3, eq4) of the crowd at the mesh vertices [ped/m^2]."""
+        return self.density_at(self.mesh.points)
+
+    def density_at(self, points: np.ndarray) -> np.ndarray:
+        """Gaussian kernel density (eq3, eq4) of the crowd at arbitrary points [ped/m^2]."""
+        from . import kernels as K
+
+        q = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        out = np.zeros(len(q))
+        if self.n == 0:
+            return out
+        self._build_cells()
+        K.density_at(q, len(q), self.x, self.n, self._cell_start, self._cell_order, self._cx0,
+                     self._cy0, self._cinv, self._cnx, self._cny, self.params.R, self.rc_d, out)
+        return out
+
+    def _route(self) -> None:
+        """Re-solve the route potential with cost 1/U_e(rho) at the vertices."""
+        from ...eikonal.direction import DirectionField
+
+        t0 = time.perf_counter()
+        if self.reroute or self.steps == 0:
+            rho_v = self.vertex_density()
+            cost = self.params.speed.route_cost(rho_v)
+            self.phi = self._solver.solve(cost)
+            field_ = DirectionField(self.mesh, self.phi)
+            if len(self._targets) == 1:
+                self._dpack = field_.packed
+            else:  # a steering table per target group, stacked (rows t + g m)
+                tables = [field_.packed] + [
+                    DirectionField(self.mesh, s.solve(cost)).packed
+                    for s in self._group_solvers[1:]]
+                self._dpack = np.ascontiguousarray(np.concatenate(tables, axis=0))
+            self.timers.routes += 1
+        ri = self.numerics.route_interval
+        self._next_route = self.t + ri if ri > 0 else self.t
+        self.timers.routing += time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ stepping
+    def _rk3(self, n: int, dt: float, tri_stage: np.ndarray) -> int:
+        from . import kernels as K
+
+        p, mesh, w = self.params, self.mesh, self.walls
+        return K.rk3_step(
+            self.x, self.v, n, dt, tri_stage, mesh.points, mesh.triangles,
+            mesh.triangle_neighbors, self._dpack,
+            self._cell_start, self._cell_order, self._cx0, self._cy0, self._cinv,
+            self._cnx, self._cny, w.piece, w.next_seg, w.x0, w.y0,
+            w.inv_cell, w.nx, w.ny, w.cell_ptr, w.cell_seg, self.rc_f, self.rc_d, self.rc_w,
+            self.rad, p.A, p.B, p.k, p.kappa, p.m, p.R, p.tau, self._u_eff, self._law,
+            self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
+            self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
+            self.toff, self._tbuf, self._space, self._rs, self._wmap, self._wgeo, self._cf,
+            self._ue,
+        )
+
+    def step(self) -> int:
+        """Advance one time step; returns the number of pedestrians that left."""
+        from . import kernels as K
+
+        nm = self.numerics
+        if self.n_waiting:
+            self._admit()
+        if self.n == 0:
+            if self.n_waiting:  # nobody inside yet, people still to arrive: the clock moves
+                self.steps += 1
+                self.t = self.steps * nm.dt
+            return 0
+        if not self._use_const and self.steps > 0 and self.t >= self._next_route - 1e-9:
+            self._route()
+        n, dt, mesh = self.n, nm.dt, self.mesh
+        if self._premovement:  # no desired speed before one's premovement time
+            np.copyto(self._u_eff[:n], np.where(self.tpre[:n] <= self.t, self.u0[:n], 0.0))
+        t0 = time.perf_counter()
+        x_old = self.x[:n].copy()
+        while True:
+            tri_stage = self.tri[:n].copy()
+            npairs = self._rk3(n, dt, tri_stage)
+            if npairs >= 0:
+                break
+            self._pi = np.empty(2 * len(self._pi), np.int64)  # pair list full: enlarge
+            self._pj = np.empty(2 * len(self._pj), np.int64)
+        self.last_pair_count = npairs
+        t1 = time.perf_counter()
+        i = K.first_bad(self.x, self.v, n, nm.max_speed**2)
+        if i >= 0:
+            speed = float(np.hypot(*self.v[i]))
+            raise SimulationError(
+                f"blow-up at t = {self.t + dt:.3f} s: pedestrian {int(self.ids[i])} has speed "
+                f"{speed:.3g} m/s (bound {nm.max_speed} m/s); try a smaller time step, "
+                f"e.g. --param dt={dt / 2:g}"
+            )
+        self.n_reflections += K.settle(
+            x_old, self.x, self.v, self.tri, n, mesh.points, mesh.triangles,
+            mesh.triangle_neighbors, mesh.triangle_edges, mesh.edge_kind, mesh.edge_owner,
+            mesh.edge_normals, self._exit_of, self._exit_frac, self._dpack,
+        )
+        gone = self._exit_of[:n] >= 0
+        n_gone = int(gone.sum())
+        if n_gone:
+            ids = self.ids[:n][gone]
+            self.exit_time[ids] = self.t + self._exit_frac[:n][gone] * dt
+            self.exit_id[ids] = self._exit_of[:n][gone]
+            self.exit_point[ids] = self.x[:n][gone]
+            keep = np.flatnonzero(~gone)
+            m = len(keep)
+            for arr in (self.x, self.v, self.rad, self.u0, self._u_eff, self.tpre, self.toff,
+                        self._e):
+                arr[:m] = arr[keep]
+            self.ids[:m] = self.ids[keep]
+            self.tri[:m] = self.tri[keep]
+            self.rho[:m] = self.rho[keep]
+            self.n = m
+        self.steps += 1
+        self.t = self.steps * dt  # no drift from summing dt
+        self.timers.forces += t1 - t0
+        self.timers.settle += time.perf_counter() - t1
+        self.timers.steps += 1
+        return n_gone
+
+    def run(self, t_end: float, callback: Callable[["Simulation"], None] | None = None) -> None:
+        """Step until everyone has left (and every entrance's people arrived) or ``t >=
+        t_end`` [s]; ``callback(self)`` after each step."""
+        while (self.n > 0 or self.n_waiting > 0) and self.t < t_end - 1e-9:
+            self.step()
+            if callback is not None:
+                callback(self)
+
+    # ------------------------------------------------------------------ results
+    @property
+    def positions(self) -> np.ndarray:
+        """(n, 2) positions [m] of the pedestrians still inside."""
+        return self.x[: self.n].copy()
+
+    @property
+    def velocities(self) -> np.ndarray:
+        """(n, 2) velocities [m/s] of the pedestrians still inside."""
+        return self.v[: self.n].copy()
+
+    @property
+    def densities(self) -> np.ndarray:
+        """(n,) kernel density [ped/m^2] at each pedestrian at the start of the last step."""
+        return self.rho[: self.n].copy()
+
+    @property
+    def active_ids(self) -> np.ndarray:
+        """(n,) ids of the pedestrians still inside."""
+        return self.ids[: self.n].copy()
+
+    @property
+    def n_evacuated(self) -> int:
+        return self.n_initial - self.n - self.n_waiting
+
+    @property
+    def finished(self) -> bool:
+        """Everyone has left (nobody inside, nobody still to arrive)."""
+        return self.n == 0 and self.n_waiting == 0
+
+    def desired_directions(self) -> np.ndarray:
+        """(n, 2) current desired directions of the pedestrians still inside (each towards
+        their own exits)."""
+        return self._directions(0, self.n)

@@ -1,0 +1,151 @@
+"""A run's output kept in memory (the Python API without an output directory): the same
+methods as :class:`~pedmesh.run.output.RunWriter`, collecting arrays instead of files, and
+the result they make (:class:`MemoryResult`, with the fields of
+:class:`~pedmesh.run.results.RunResult`)."""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from .._version import __version__
+from ..errors import PedmeshError
+from .output import _clean
+
+__all__ = ["MemoryWriter", "MemoryResult"]
+
+
+class MemoryWriter:
+    """Collects what :class:`~pedmesh.run.output.RunWriter` would write (see its methods)."""
+
+    def __init__(self, header: Mapping[str, Any], *, exit_names: Sequence[str] = ()) -> None:
+        self.header = {**dict(header), "pedmesh_version": __version__}
+        self.exit_names = list(exit_names)
+        self.evacuation: list[tuple[float, float]] = []
+        self.outflow_rows: list[tuple[float, list[float]]] = []
+        self.tables: dict[str, tuple[str, list[str]]] = {}
+        #: (t [s], point data, cell data) of each density frame
+        self.density: list[tuple[float, dict, dict]] = []
+        #: (t [s], positions (n, 2) [m], data) of each pedestrian frame
+        self.pedestrians: list[tuple[float, np.ndarray, dict]] = []
+        self.trajectory: list[np.ndarray] = []
+        self.frame_rate: float | None = None
+        self.summary: dict[str, Any] = {**self.header, "status": "running"}
+
+    def start(self, header: Mapping[str, Any] | None = None) -> None:
+        if header:
+            self.header.update(header)
+            self.summary.update(header)
+
+    def sample(self, t: float, evacuated: float) -> None:
+        self.evacuation.append((float(t), float(evacuated)))
+
+    def outflow(self, t: float, flows: Sequence[float]) -> None:
+        self.outflow_rows.append((float(t), [float(f) for f in flows]))
+
+    def append_rows(self, name: str, header: str, rows: Sequence[str]) -> None:
+        self.tables.setdefault(name, (header, []))[1].extend(rows)
+
+    def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
+        self.density.append((float(t), copy.deepcopy(dict(point_data or {})),
+                             copy.deepcopy(dict(cell_data or {}))))
+
+    def pedestrian_frame(self, t: float, points: np.ndarray,
+                         data: Mapping[str, np.ndarray]) -> None:
+        self.pedestrians.append((float(t), np.array(points, float),
+                                 {k: np.array(v) for k, v in data.items()}))
+
+    def trajectory_frame(self, frame: int, ids: np.ndarray, points: np.ndarray,
+                         frame_rate: float, description: str, *,
+                         orientation: np.ndarray | None = None,
+                         walkable_wkt: str | None = None) -> None:
+        points = np.asarray(points, float).reshape(-1, 2)
+        rows = np.empty(len(points), dtype=TRAJECTORY_DTYPE)
+        rows["id"] = np.asarray(ids, np.int64)
+        rows["frame"] = frame
+        rows["x"] = points[:, 0]
+        rows["y"] = points[:, 1]
+        self.trajectory.append(rows)
+        self.frame_rate = float(frame_rate)
+
+    def finish(self, **summary: Any) -> dict[str, Any]:
+        self.summary = _clean({**self.header, **summary})
+        return self.summary
+
+    def result(self) -> "MemoryResult":
+        """What the run made, as a :class:`MemoryResult`."""
+        ev = np.array(self.evacuation, float).reshape(-1, 2)
+        t_out = np.array([r[0] for r in self.outflow_rows], float)
+        flows = np.array([r[1] for r in self.outflow_rows], float).reshape(
+            len(self.outflow_rows), len(self.exit_names))
+        exits = self.tables.get("exits.csv", ("", []))[1]
+        traj = (np.concatenate(self.trajectory) if self.trajectory
+                else np.zeros(0, TRAJECTORY_DTYPE))
+        return MemoryResult(
+            summary=self.summary, evacuation=(ev[:, 0], ev[:, 1]),
+            outflow=(t_out, flows, list(self.exit_names)),
+            exit_times=np.array([float(r.split(",")[2]) for r in exits if r]),
+            density=self.density, pedestrians=self.pedestrians, trajectories=traj,
+            frame_rate=self.frame_rate)
+
+
+#: one row of a trajectory: pedestrian id, frame number, position [m]
+TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float),
+                             ("y", float)])
+
+
+@dataclass
+class MemoryResult:
+    """The outputs of a run kept in memory, with the fields of
+    :class:`~pedmesh.run.results.RunResult` (``summary``, ``evacuation``, ``outflow``,
+    ``exit_times``) and the frames themselves:
+
+    * ``density``: (t [s], point data, cell data) per frame, e.g. the continuum's cell
+      density ``rho`` [ped/m^2] and ``velocity`` [m/s], the particle models' vertex
+      ``density``;
+    * ``pedestrians``: (t [s], positions (n, 2) [m], per-pedestrian data) per frame
+      (particle models);
+    * ``trajectories``: a structured array (id, frame, x [m], y [m]) at ``frame_rate``
+      frames/s (particle models; frame k is at t = k / frame_rate).
+    """
+
+    summary: dict
+    evacuation: tuple[np.ndarray, np.ndarray]
+    outflow: tuple[np.ndarray, np.ndarray, list[str]]
+    exit_times: np.ndarray
+    density: list = field(default_factory=list, repr=False)
+    pedestrians: list = field(default_factory=list, repr=False)
+    trajectories: np.ndarray = field(default_factory=lambda: np.zeros(0, TRAJECTORY_DTYPE),
+                                     repr=False)
+    frame_rate: float | None = None
+    #: no output directory: the result lives in memory
+    path: None = None
+
+    @property
+    def model(self) -> str:
+        return self.summary["model"]
+
+    @property
+    def status(self) -> str | None:
+        return self.summary.get("status")
+
+    @property
+    def finished(self) -> bool:
+        from .results import FINISHED_STATUSES
+
+        return self.status in FINISHED_STATUSES
+
+    @property
+    def times(self) -> dict[str, float | None]:
+        """T50, T90 and T100 [s] (None where not reached)."""
+        return {k: self.summary.get(f"t_evac_{k[1:]}") for k in ("T50", "T90", "T100")}
+
+    def density_at(self, t: float) -> tuple[float, dict, dict]:
+        """The density frame nearest to ``t`` [s]: (its time, point data, cell data)."""
+        if not self.density:
+            raise PedmeshError("the run wrote no density frames")
+        k = int(np.argmin([abs(ft - t) for ft, _, _ in self.density]))
+        return self.density[k]
