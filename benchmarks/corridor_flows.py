@@ -1,7 +1,7 @@
 """The Jülich corridor flows: the door-modelled entrance against the experiment's inflow.
 
 The validated preset (``docs/validation/fit.md``) is fitted with the corridor runs fed by
-the experiment's own inflow (``benchmarks/validation.py --entrance replay``). Modelled as
+the experiment's own inflow (``python -m pedmesh.fitting.validate --entrance replay``). Modelled as
 in ``geometries/experiments/`` instead (a crowd in a guessed waiting area pressing through
 the entrance door), the narrow-entrance runs uo-070 (0.7 m) and uo-100 (1.0 m) come out
 20-30 % too slow. This script checks what the misses and the fit's results are made of:
@@ -17,7 +17,7 @@ the entrance door), the narrow-entrance runs uo-070 (0.7 m) and uo-100 (1.0 m) c
    uo-100 and uo-095 against the body diameter 2r, and the two runs again with the sliding
    friction kappa 100 times larger: whether pushing through body contact, the model's only
    force that grows with the crowd pressing from behind, takes part at all.
-5. **The experiment's inflow** (``benchmarks/validation.py --entrance replay``): each room
+5. **The experiment's inflow** (``pedmesh.fitting.validate --entrance replay``): each room
    fed by the experiment's own people at the times they crossed y = 7.5 m, with
    ``--seeds`` realisations (each entering person's spot jittered by the seed): the exit
    flows the model gives when the entrance is the experiment's and not its own door;
@@ -39,18 +39,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import validation as B  # noqa: E402  (benchmarks/validation.py)
-
-from pedmesh import load_room  # noqa: E402
-from pedmesh import validation as V  # noqa: E402
+from pedmesh import load_room
+from pedmesh import validation as V
+from pedmesh.fitting import validate as B
 
 WAITING_DENSITIES = (1.0, 3.0)  # [1/m^2]
 WAITING_RUNS = ("uo-070-180-180", "uo-100-180-180", "uo-180-180-180")

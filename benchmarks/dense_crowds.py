@@ -7,8 +7,8 @@ realisation each (seed 1), and writes the table of ``docs/validation/dense_crowd
   with the entrance as a door (``geometries/experiments/``: a waiting crowd presses
   through it): exit flow J against the experiment;
 * uo-095 and uo-145 fed with the experiment's own inflow (``--entrance replay``);
-* the bottleneck of ``validation.py`` at b = 0.5, 1.0 and 1.8 m: specific flow J/b against
-  the published band and the Voronoi density in front of the opening;
+* the bottleneck of :mod:`pedmesh.fitting.validate` at b = 0.5, 1.0 and 1.8 m: specific
+  flow J/b against the published band and the Voronoi density in front of the opening;
 * how people pass the entrance door of uo-070 and uo-100 and the exit of uo-095, in the
   experiment and in the shipped preset: the median speed of those crossing y = 7.5 m
   (0.5 m past the entrance) or y = -3.9 m (0.1 m before the exit), and the 10-90 % range
@@ -18,7 +18,7 @@ Usage::
 
     python benchmarks/dense_crowds.py [--probes NAME,...] [--jobs 2] [--out FILE]
 
-Every number is measured by the functions of ``validation.py`` and
+Every number is measured by the functions of :mod:`pedmesh.fitting.validate` and
 :mod:`pedmesh.validation` (PedPy); nothing here is fitted.
 """
 
@@ -40,10 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+ROOT = Path(__file__).resolve().parents[1]
 
 #: the shipped table fit's speed table with its jam point moved from 5.6 to 10 /m^2
 JAM10 = "0:1 0.3:0.944 0.6:0.802 1.5:0.582 2.7:0.298 10:0"
@@ -107,7 +104,7 @@ def passage(traj, y: float) -> tuple[float, float, float]:
 def run_case(probe: str, kind: str, name: str) -> dict:
     """One probe on one case: flow (and density in front, passage for door runs)."""
     warnings.filterwarnings("ignore")
-    import validation as VB
+    from pedmesh.fitting import validate as VB
     from pedmesh import load_room
     from pedmesh import validation as V
 
@@ -142,7 +139,7 @@ def run_case(probe: str, kind: str, name: str) -> dict:
 def experiment_side() -> dict:
     """The experiment's exit flows and passages (the same measurement)."""
     warnings.filterwarnings("ignore")
-    import validation as VB
+    from pedmesh.fitting import validate as VB
     from pedmesh import validation as V
 
     out = {}

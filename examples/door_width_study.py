@@ -10,9 +10,17 @@ T100 medians with their 5-95 % ranges, and the specific flow) and
 
     python examples/door_width_study.py [--members 10] [--workers 2]
                                         [--scheduler tcp://HOST:8786]
+                                        [--widths 0.8,1.2,1.6,2.4] [--out DIR] [--results DIR]
 
-The runs land in ``runs/door-width/<w>m/`` (ordinary ensemble folders); running the
-script again reuses the finished members.
+The runs land in ``runs/door-width/<w>m/`` (ordinary ensemble folders, ``--out``); running
+the script again reuses the finished members. ``--results`` is where the room files, the
+table and the figure go (default: ``examples/door_width/``).
+
+A small run (``tests/test_examples.py``): two members at two widths on one worker, into
+folders of one's own::
+
+    python examples/door_width_study.py --members 2 --widths 1.2,2.4 --workers 1
+                                        --out DIR/runs --results DIR
 """
 
 from __future__ import annotations
@@ -27,8 +35,9 @@ HERE = Path(__file__).resolve().parent / "door_width"
 WIDTHS = (0.8, 1.2, 1.6, 2.4)
 
 
-def room_file(width: float) -> Path:
-    """The 10 x 10 m room with a door of ``width`` [m] centred in its east wall."""
+def room_file(width: float, folder: Path = HERE) -> Path:
+    """The 10 x 10 m room with a door of ``width`` [m] centred in its east wall, written
+    into ``folder``."""
     from pedmesh import Exit, Room, StartArea, save_room
 
     y0, y1 = 5.0 - width / 2, 5.0 + width / 2
@@ -37,24 +46,31 @@ def room_file(width: float) -> Path:
                 start_areas=[StartArea("crowd", [(0.5, 0.5), (5.5, 0.5), (5.5, 9.5),
                                                  (0.5, 9.5)], count=100)],
                 name=f"door-{width:g}m")
-    path = HERE / f"room-{width:g}m.json"
+    path = folder / f"room-{width:g}m.json"
     save_room(room, path)
     return path
 
 
-def main() -> None:
+def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--members", type=int, default=10)
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--scheduler", default=None)
     ap.add_argument("--out", default=str(ROOT / "runs" / "door-width"))
-    args = ap.parse_args()
+    ap.add_argument("--widths", default=",".join(f"{w:g}" for w in WIDTHS),
+                    help="comma-separated door widths [m] (default: 0.8,1.2,1.6,2.4)")
+    ap.add_argument("--results", type=Path, default=HERE,
+                    help="folder for the room files, door_width.md and the figure "
+                         "(default: examples/door_width/)")
+    args = ap.parse_args(argv)
+    widths = [float(w) for w in args.widths.split(",")]
+    results_dir = args.results
 
     import pedmesh
     from pedmesh.plotting import _plt
     from pedmesh.run import RunResult
 
-    HERE.mkdir(parents=True, exist_ok=True)
+    results_dir.mkdir(parents=True, exist_ok=True)
     client = cluster = None
     if args.scheduler is None:  # one cluster for every width, started once
         from distributed import Client, LocalCluster
@@ -64,8 +80,8 @@ def main() -> None:
         client = Client(cluster)
     try:
         results = {}
-        for w in WIDTHS:
-            results[w] = pedmesh.ensemble(room_file(w), "sfm", args.members,
+        for w in widths:
+            results[w] = pedmesh.ensemble(room_file(w, results_dir), "sfm", args.members,
                                           Path(args.out) / f"{w:g}m", client=client,
                                           scheduler=args.scheduler)
     finally:
@@ -107,9 +123,9 @@ def main() -> None:
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(HERE / "door_width_bands.png", dpi=120)
+    fig.savefig(results_dir / "door_width_bands.png", dpi=120)
     lines += ["", "![bands](door_width_bands.png)", ""]
-    (HERE / "door_width.md").write_text("\n".join(lines) + "\n")
+    (results_dir / "door_width.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

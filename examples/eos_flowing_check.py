@@ -7,7 +7,13 @@ second the per-pedestrian virial stress (pair forces with the simulator's kernel
 velocity fluctuation about the kernel-averaged velocity), bins it by the kernel density at
 each pedestrian, and compares the flowing crowd's pressure with the law measured in
 periodic boxes at rest (``pedmesh calibrate``, the shipped calibration). Also reports the
-deviatoric part in the walking frame. Writes ``eos_flowing_check.md`` and ``.png``.
+deviatoric part in the walking frame. Writes ``eos_flowing_check.md`` and ``.png`` into
+``--out`` (default: ``examples/results/``).
+
+A small run (seconds once numba has compiled; ``tests/test_examples.py``): the 150 people
+of the corridor bottleneck instead of Example 2's 2400, into a folder of one's own::
+
+    python examples/eos_flowing_check.py --geometry geometries/corridor_bottleneck.json --out DIR
 """
 
 from __future__ import annotations
@@ -66,7 +72,8 @@ def main(argv=None) -> None:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 4))
     ok = r["count"] >= 20
-    ax.semilogy(r["rho"][ok], r["p"][ok], "o", label="flowing crowd (Example 2), binned")
+    name = "Example 2" if room.name == "example2" else room.name
+    ax.semilogy(r["rho"][ok], r["p"][ok], "o", label=f"flowing crowd ({name}), binned")
     tab = cal["table"]
     rr = np.array([t["rho"] for t in tab])
     ax.errorbar(rr, [t["p"] for t in tab], yerr=[t["p_err"] for t in tab], fmt="s", ms=4,

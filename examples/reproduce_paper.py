@@ -1,6 +1,7 @@
 """Reproduce every numerical figure of Yang, Yu & Du for Examples 1-3 and check its claims.
 
-    python examples/reproduce_paper.py [--out examples/results] [--quick] [--examples example3]
+    python examples/reproduce_paper.py [--out examples/results] [--quick] [--small]
+                                       [--examples example3]
 
 For each example the models run through ``pedmesh.compare`` (finished runs are reused, so
 an interrupted reproduction resumes), then the paper's figures are drawn:
@@ -16,7 +17,11 @@ an interrupted reproduction resumes), then the paper's figures are drawn:
 and ``RESULTS.md`` tabulates T50/T90/T100 per model and example, the distance of every
 continuum model from the SFM, and states for each of the paper's claims whether these runs
 confirm it. The VTK series of every run stay in ``<out>/example*/<model>/``.
-``--quick`` runs a reduced set (for a smoke test), not the paper's figures. ``--examples``
+``--quick`` runs a reduced set (for a smoke test), not the paper's figures. ``--small``
+runs every example in its room scaled down five times in length (20 x 10 m, about 100
+people instead of 2400; the rooms are written to ``<out>/rooms/``, and ``--out`` defaults
+to ``examples/results-small``): a check that the whole script runs, in seconds with
+``--quick`` (``tests/test_examples.py``), not the paper's results. ``--examples``
 and ``--only`` (run labels such as ``mac1,pw_c01``) restrict the runs, with
 ``--no-figures``, to spread them over several processes that must not share a run
 (finished runs are reused through the results folder; a final plain invocation draws every
@@ -26,6 +31,7 @@ figure and writes RESULTS.md).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 import time
@@ -46,13 +52,38 @@ MODELS = {
 DENSITY_TIMES = {"example1": [30, 50, 70], "example2": [30, 50, 70, 90],
                  "example3": [30, 50, 80, 100]}
 QUICK = {"example1": "sfm,rdue", "example2": "sfm,rdue", "example3": "sfm,rdue"}
+#: ``--small``: the examples' rooms scaled by this factor in length
+SMALL_SCALE = 0.2
+
+
+def scaled_room(example: str, scale: float, folder: Path) -> Path:
+    """``geometries/<example>.json`` with every coordinate times ``scale``, written to
+    ``folder``; the start areas keep their spacing, so the crowd shrinks by ``scale**2``."""
+    room = json.loads((ROOT / "geometries" / f"{example}.json").read_text())
+
+    def points(pts):
+        return [[scale * x, scale * y] for x, y in pts]
+
+    room["outline"] = points(room["outline"])
+    for key in ("exits", "obstacles", "start_areas", "measurement_lines", "measurement_areas"):
+        for item in room.get(key, []):
+            for shape in ("polyline", "polygon"):
+                if shape in item:
+                    item[shape] = points(item[shape])
+    room["name"] = f"{example}-small"
+    room["description"] = f"{example} scaled by {scale:g} in length (reproduce_paper.py --small)"
+    path = folder / f"{example}.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(room, indent=1) + "\n")
+    return path
 
 
 def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
           examples=("example1", "example2", "example3"), max_area: float = 0.5,
-          only: set[str] | None = None) -> dict:
-    """Run (or reuse) every model of every example (or only the run labels in ``only``);
-    returns {example: ComparisonResult}."""
+          only: set[str] | None = None, scale: float = 1.0) -> dict:
+    """Run (or reuse) every model of every example (or only the run labels in ``only``),
+    in rooms scaled by ``scale`` in length (:func:`scaled_room`) unless it is 1; returns
+    {example: ComparisonResult}."""
     from pedmesh import load_room
     from pedmesh.compare import parse_model_specs, run_comparison
     from pedmesh.models import model_names
@@ -68,12 +99,15 @@ def setup(out: str | Path = ROOT / "examples" / "results", quick: bool = False,
             if only is None or s.label in only]
         if not specs:
             continue
-        room = load_room(ROOT / "geometries" / f"{ex}.json")
+        geometry = f"geometries/{ex}.json"
+        if scale != 1.0:
+            geometry = str(scaled_room(ex, scale, out / "rooms").resolve())
+        room = load_room(ROOT / geometry)  # (an absolute path stays itself)
         mesh = triangulate(room, max_area=max_area, feature_area=None)  # (uniform, as the results)
         t0 = time.perf_counter()
         print(f"== {ex}: {', '.join(s.label for s in specs)}", file=sys.stderr)
         results[ex] = (room, mesh, run_comparison(
-            room, mesh, specs, out / ex, geometry=f"geometries/{ex}.json",
+            room, mesh, specs, out / ex, geometry=geometry,
             mesh_options={"max_area": max_area, "min_angle": 30.0, "feature_area": None,
                           "exit_size": None},
             density_times=DENSITY_TIMES[ex], quiet=False))
@@ -358,8 +392,12 @@ def eos_section(results: dict) -> list[str]:
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--out", default=str(ROOT / "examples" / "results"))
+    ap.add_argument("--out", default=None,
+                    help="results folder (default: examples/results, with --small "
+                         "examples/results-small)")
     ap.add_argument("--quick", action="store_true", help="a reduced smoke run, not the paper set")
+    ap.add_argument("--small", action="store_true",
+                    help=f"rooms scaled by {SMALL_SCALE:g} in length (a smoke run)")
     ap.add_argument("--examples", default="example1,example2,example3",
                     help="comma-separated subset of example1,example2,example3")
     ap.add_argument("--only", default=None, help="comma-separated run labels (e.g. mac1,pw_c01)")
@@ -369,11 +407,12 @@ def main(argv=None) -> None:
     unknown = [e for e in examples if e not in MODELS]
     if unknown or not examples:
         ap.error(f"unknown example(s) {unknown}; choose from {', '.join(MODELS)}")
-    out = Path(a.out)
+    out = Path(a.out or ROOT / "examples" / ("results-small" if a.small else "results"))
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     only = None if a.only is None else {x.strip() for x in a.only.split(",") if x.strip()}
-    results = setup(out, quick=a.quick, examples=examples, only=only)
+    results = setup(out, quick=a.quick, examples=examples, only=only,
+                    scale=SMALL_SCALE if a.small else 1.0)
     if a.no_figures:
         print(f"runs done in {time.perf_counter() - t0:.0f} s (no figures)", file=sys.stderr)
         return

@@ -14,18 +14,18 @@ model everything).
   fitted to experiments.
 * ``validated`` (the default): the social force model's desired speed a table
   (``speed_law=table``) in its kernel density without one's own share (``density_self=0``,
-  free speed 1.34 m/s), fitted by ``benchmarks/fit_validated.py`` to the Juelich corridor
-  runs (fed with the experiment's inflow), bottleneck flows and the fundamental diagram, with
-  ``tau`` and the repulsion strength ``A`` of its earlier fit of Weidmann's law, and the
-  terms for crowds that press (a space requirement that shrinks with the desired speed,
-  queueing or crowding: ``shrink``, ``t_space``, ``crowd_stretch``, ``crowd_knee``,
-  ``queue_width``, ``crowd_width``) fitted by ``fit_validated.py --law crowd`` to both
-  entrances of the corridor runs, the published bottleneck flows and the densities in
-  front of entrances (``pedmesh/data/validated.json``; ``docs/validation/fit.md``), Table 1
+  free speed 1.34 m/s), fitted by ``python -m pedmesh.fitting.fit_validated`` to the Juelich
+  corridor runs (fed with the experiment's inflow), bottleneck flows and the fundamental
+  diagram, with ``tau`` and the repulsion strength ``A`` of its earlier fit of Weidmann's
+  law, and the terms for crowds that press (a space requirement that shrinks with the
+  desired speed, queueing or crowding: ``shrink``, ``t_space``, ``crowd_stretch``,
+  ``crowd_knee``, ``queue_width``, ``crowd_width``) fitted by ``fit_validated --law crowd``
+  to both entrances of the corridor runs, the published bottleneck flows and the densities
+  in front of entrances (``pedmesh/data/validated.json``; ``docs/validation/fit.md``), Table 1
   otherwise. The continuum models take the fitted SFM's own fundamental diagram, measured by
-  ``benchmarks/continuum_law.py`` (``pedmesh/data/fd_validated.json``), as their table
-  (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with these
-  parameters (``pedmesh/data/eos_validated.json``).
+  ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``), as
+  their table (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with
+  these parameters (``pedmesh/data/eos_validated.json``).
 
 ``pedmesh presets`` lists them with values, units and sources.
 """
@@ -90,7 +90,7 @@ def _unit(name: str) -> str:
 
 DATA = Path(__file__).resolve().parent / "data"
 FIT = ("fitted to the Juelich corridor runs and bottleneck flows "
-       "(benchmarks/fit_validated.py -> pedmesh/data/validated.json)")
+       "(pedmesh.fitting.fit_validated -> pedmesh/data/validated.json)")
 
 
 def _validated() -> "Preset | None":
@@ -114,12 +114,12 @@ def _validated() -> "Preset | None":
             src = (FIT + " (--law table); U_e/U_f at the kernel density without one's own "
                    "share, kept when the dense-crowd terms were fitted")
         elif k in fit.get("carried", {}):
-            src = ("fitted with Weidmann's law to the same data (benchmarks/fit_validated.py "
+            src = ("fitted with Weidmann's law to the same data (pedmesh.fitting.fit_validated "
                    "--law weidmann), kept when the law was fitted as a table")
         elif k == "crowd_width":
             src = "Adrian et al. 2020: crowding from corridors 2.3 m wide on"
         elif k == "t_space":
-            src = ("chosen by probes before the fit (benchmarks/fit_validated.py --law crowd; "
+            src = ("chosen by probes before the fit (pedmesh.fitting.fit_validated --law crowd; "
                    "docs/validation/dense_crowds.md)")
         elif k == "speed_law" and v == "table":
             src = "pedmesh: U_e = U_f g(rho), g piecewise linear through speed_table's points"
@@ -141,7 +141,7 @@ def _validated() -> "Preset | None":
             continuum["speed_table"] = Value(
                 json.loads(fd.read_text())["speed_table"], _unit("speed_table"),
                 "the validated SFM's fundamental diagram (speed/U_f at the crowd's density), "
-                "measured by benchmarks/continuum_law.py -> pedmesh/data/fd_validated.json")
+                "measured by pedmesh.fitting.continuum_law -> pedmesh/data/fd_validated.json")
     # the continuum models: the same law, shifted by the kernel share the social force model
     # leaves out, so that both have one fundamental diagram
     elif not fit["parameters"].get("density_self", 1):

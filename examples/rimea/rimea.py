@@ -10,6 +10,15 @@ where it gives sizes; where it leaves them open the choice is stated in the repo
 
     python examples/rimea/rimea.py [--presets paper,weidmann] [--tests 1,4,5,6,7,9,10,11,12,15]
                                    [--models sfm,eos,rdue] [--out runs/rimea]
+                                   [--rooms examples/rimea/rooms] [--report FILE]
+
+A small run (a few seconds once numba has compiled; ``tests/test_examples.py``) keeps
+everything out of the repository::
+
+    python examples/rimea/rimea.py --tests 1,6 --models sfm,rdue --out DIR/runs
+                                   --rooms DIR/rooms --report DIR/RIMEA.md
+
+The exit status is 1 if any test fails.
 
 Not covered (pedmesh has no stairs or floors): tests 2 and 3 (stairs), 8 (a three-storey
 building), 13 (jam at stairs), 14 (route choice between floors).
@@ -493,6 +502,7 @@ def report(rows: list[dict], presets: list[str], seconds: float) -> str:
 
 
 def main(argv=None) -> int:
+    global ROOMS  # where save() writes the rooms (--rooms)
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--presets", default=None,
                     help="comma-separated presets (default: the default preset)")
@@ -500,7 +510,11 @@ def main(argv=None) -> int:
     ap.add_argument("--models", default="sfm,eos,rdue")
     ap.add_argument("--out", type=Path, default=Path("runs/rimea"))
     ap.add_argument("--report", type=Path, default=HERE / "RIMEA.md")
+    ap.add_argument("--rooms", type=Path, default=ROOMS,
+                    help="folder the tests' room files are written to (default: "
+                         "examples/rimea/rooms/)")
     args = ap.parse_args(argv)
+    ROOMS = args.rooms
     from pedmesh.presets import DEFAULT_PRESET
 
     presets = (args.presets or DEFAULT_PRESET).split(",")

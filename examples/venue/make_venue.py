@@ -10,11 +10,14 @@ three on the north side, one per hall. The crowd: 31,000 people in each hall (ab
 1.9 /m^2, a busy fair) and 7,000 in the concourse: 100,000 in all (venue.json), or a
 tenth of each (venue_10k.json).
 
-    python examples/venue/make_venue.py
+    python examples/venue/make_venue.py [--out DIR]
+
+``--out`` is where the two files go (default: ``geometries/``).
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -83,9 +86,14 @@ def venue(scale: float = 1.0) -> dict:
     }
 
 
-def main() -> None:
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=ROOT / "geometries", metavar="DIR",
+                    help="folder for venue.json and venue_10k.json (default: geometries/)")
+    args = ap.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
     for name, scale in (("venue.json", 1.0), ("venue_10k.json", 0.1)):
-        path = ROOT / "geometries" / name
+        path = args.out / name
         path.write_text(json.dumps(venue(scale), indent=1) + "\n")
         print(f"wrote {path}")
 

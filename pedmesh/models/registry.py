@@ -20,8 +20,8 @@ from typing import Any, Callable
 from ..errors import ParameterError
 from ..parameters import Parameter
 
-__all__ = ["ModelEntry", "register_model", "unregister_model", "get_model", "model_names", "entries",
-           "PARTICLES", "CONTINUUM"]
+__all__ = ["ModelEntry", "register_model", "unregister_model", "get_model", "model_names",
+           "entries", "PARTICLES", "CONTINUUM"]
 
 #: the two scales: a model of individual pedestrians, or of densities on the mesh
 PARTICLES = "particles"

@@ -54,7 +54,7 @@ def test_speed_table_of_measurements():
 
 def test_validated_continuum_law_is_the_sfms_measured_diagram():
     """The validated preset gives the continuum models the table that
-    benchmarks/continuum_law.py measured with the preset's own SFM parameters, and the SFM
+    pedmesh.fitting.continuum_law measured with the preset's own SFM parameters, and the SFM
     walks at that table's speed now (one realisation at 2 /m^2, within 6 %)."""
     from pedmesh.presets import DATA, get_preset
     from pedmesh.models import get_model

@@ -1,4 +1,4 @@
-"""Fit a few social-force parameters to the validation data (``benchmarks/validation.py``).
+"""Fit a few social-force parameters to the validation data (:mod:`pedmesh.fitting.validate`).
 
 Three fits live here (``--law``); the shipped ``validated`` preset is the last one run.
 
@@ -58,18 +58,18 @@ Three fits live here (``--law``); the shipped ``validated`` preset is the last o
     (``docs/validation/fit_evaluations.csv``).
 
 The corridor runs' entrance
-    The corridor runs are fed with the experiment's own inflow (``validation.py --entrance
-    replay``: each person enters at y = 7.5 m when they crossed it in the experiment). The
-    experiment let its people in at a controlled rate from an unrecorded waiting area, so
-    the entrance flow is the experiment's boundary condition, not something to predict; a
-    first fit (``docs/validation/fit_evaluations_door.csv``) modelled it as a door with a
-    waiting crowd and could not meet the narrow-entrance runs and uo-095's exit at once
-    (``docs/validation/corridor_flows.md``).
+    The corridor runs are fed with the experiment's own inflow (``pedmesh.fitting.validate
+    --entrance replay``: each person enters at y = 7.5 m when they crossed it in the
+    experiment). The experiment let its people in at a controlled rate from an unrecorded
+    waiting area, so the entrance flow is the experiment's boundary condition, not
+    something to predict; a first fit (``docs/validation/fit_evaluations_door.csv``)
+    modelled it as a door with a waiting crowd and could not meet the narrow-entrance runs
+    and uo-095's exit at once (``docs/validation/corridor_flows.md``).
 
 Objective (a weighted sum of squares of relative errors, each divided by its tolerance)
-    Measured by :func:`validation.run_validation` (parts ``corridor`` and ``bottleneck``,
-    Voronoi samples from every frame) -- the same PedPy measurement for simulation and
-    experiment; nothing of it is duplicated here::
+    Measured by :func:`pedmesh.fitting.validate.run_validation` (parts ``corridor`` and
+    ``bottleneck``, Voronoi samples from every frame) -- the same PedPy measurement for
+    simulation and experiment; nothing of it is duplicated here::
 
         F = sum_runs (e_J / 0.10)^2                  5 corridor runs uo-*: exit flow J [1/s]
           + sum_b    (e_b / (0.3/1.9))^2            J/b at b = 0.8, 1.2, 1.8, 2.5 m vs 1.9 /(m s)
@@ -111,11 +111,14 @@ Output
 
 Usage::
 
-    NUMBA_NUM_THREADS=1 python benchmarks/fit_validated.py [--law crowd|table|weidmann] [--jobs 2]
+    python -m pedmesh.fitting.fit_validated [--law crowd|table|weidmann] [--jobs 2]
         [--nm-evals 25] [--csv PATH] [--data DIR] [--grid-only] [--report-only] [--no-write]
 
 The continuum models' law under the preset is then measured from the fitted SFM by
-``benchmarks/continuum_law.py`` (``pedmesh/data/fd_validated.json``).
+``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``).
+
+The fit reads and writes the source checkout it is run from (``docs/validation/``,
+``pedmesh/data/``) and sets ``NUMBA_NUM_THREADS=1`` unless it is set.
 
 Data: Jülich uni-directional corridor runs uo-* (Pedestrian Dynamics Data Archive,
 Forschungszentrum Jülich; Zhang et al., J. Stat. Mech. P06004, 2011), the bottleneck
@@ -125,10 +128,6 @@ speed 1.34 m/s.
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # before numba is imported anywhere
-
 import argparse
 import concurrent.futures as cf
 import csv
@@ -137,6 +136,7 @@ import itertools
 import json
 import math
 import multiprocessing
+import os
 import sys
 import time
 import warnings
@@ -145,10 +145,8 @@ from typing import Any
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
+#: the source checkout (pedmesh/fitting/ -> the repository) whose data and docs the fit writes
+ROOT = Path(__file__).resolve().parents[2]
 
 PRESET = "weidmann"
 #: the fits: what is fixed, what is fitted ((lower, upper) bound, rounding (decimals), grid
@@ -213,7 +211,7 @@ FIT: dict[str, dict[str, Any]] = LAWS[LAW]["fit"]
 SEEDS: tuple = LAWS[LAW]["seeds"]
 NAMES = tuple(FIT)
 PARTS = ("corridor", "bottleneck")
-#: the corridor runs' entrance (benchmarks/validation.py): the experiment's own inflow
+#: the corridor runs' entrance (pedmesh.fitting.validate): the experiment's own inflow
 ENTRANCE = "replay"
 #: the entrances a law's corridor runs are measured with (the first is ENTRANCE's)
 ENTRANCES: tuple = LAWS[LAW].get("entrances", (ENTRANCE,))
@@ -358,7 +356,7 @@ def evaluate(x: dict[str, float], data_dir: str | None = None,
     fit ``law`` with ``seed``; a flat record of the simulated values, the references and
     the relative errors (no objective). :func:`merge` averages the realisations."""
     warnings.filterwarnings("ignore")
-    from validation import run_validation
+    from pedmesh.fitting.validate import run_validation
 
     if law is not None and law != LAW:
         configure(law)
@@ -426,7 +424,7 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
     for k in ("failed", "clogged", "seconds"):
         out[k] = float(sum(float(r[k]) for r in recs))
     out["rms_all"] = float(np.mean([float(r["rms_all"]) for r in recs]))
-    from validation import _rel  # (sim / ref - 1, nan if either is missing)
+    from pedmesh.fitting.validate import _rel  # (sim / ref - 1, nan if either is missing)
 
     for ent in ENTRANCES:
         t = _suffix(ent)
@@ -649,7 +647,7 @@ def run_nelder_mead(log: Log, pool, max_evals: int, data_dir: str | None) -> Any
 def free_check(x: dict[str, float], data_dir: str | None) -> dict[str, Any]:
     """The free-walking part at the fitted point (a lone walker's mean speed)."""
     warnings.filterwarnings("ignore")
-    from validation import run_validation
+    from pedmesh.fitting.validate import run_validation
 
     res = run_validation(model_parameters(x), PRESET, parts=("free",), data_dir=data_dir,
                          log=lambda *a, **k: None)
@@ -766,7 +764,7 @@ def _f(v, fmt=".2f"):
 
 
 def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dict[str, Any]:
-    import pedmesh
+    from pedmesh._version import __version__
 
     best = log.best()
     x = rounded(best)
@@ -783,14 +781,15 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
            "/m^2, Voronoi speeds at 1/2/3 /m^2 15 % with both entrances"
            if FRONT else "flows 10 %, bottleneck J/b 0.3/1.9, Voronoi speeds at 1/2/3 /m^2 "
            "15 %")
-        + f"; +{PENALTY:g} per failed or clogged run), measured by benchmarks/validation.py "
-        f"run_validation (corridor, entrance {'+'.join(ENTRANCES)}, + bottleneck at "
+        + f"; +{PENALTY:g} per failed or clogged run), measured by "
+        "pedmesh.fitting.validate.run_validation (corridor, entrance "
+        f"{'+'.join(ENTRANCES)}, + bottleneck at "
         f"{', '.join(f'{b:g}' for b in WIDTHS)} m, fd_frames=all). Coarse grid {len(grid)} "
         "points ("
         + ", ".join(f"{n} {FIT[n]['grid']}" for n in NAMES)
         + "), then bounded Nelder-Mead from the best grid point "
         f"(scaled coordinates, xatol 1.5 % of each range, {len(nmr)} new runs); "
-        f"benchmarks/fit_validated.py --law {LAW}, evaluations in docs/validation/"
+        f"python -m pedmesh.fitting.fit_validated --law {LAW}, evaluations in docs/validation/"
         f"{LAWS[LAW]['csv']}"
         + (f"; each point the mean of realisations (seeds) {', '.join(map(str, SEEDS))}"
            if SEEDS != (None,) else ""))
@@ -812,7 +811,7 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                  if FRONT else "Juelich uo-* runs; Seyfried 2009/Liddle 2011 bottleneck ~1.9 "
                  "/(m s); Weidmann free speed 1.34"),
         "date": datetime.date.today().isoformat(),
-        "pedmesh_version": pedmesh.__version__,
+        "pedmesh_version": __version__,
     }
     OUT_JSON.parent.mkdir(parents=True, exist_ok=True)
     OUT_JSON.write_text(json.dumps(out, indent=1) + "\n")
@@ -821,8 +820,8 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                       for k, v in model_parameters(x).items())
     bounds_txt = ", ".join(f"{n} {FIT[n]['bounds']}" for n in NAMES)
     md = ["# SFM parameters fitted to the validation data", "",
-          "Written by `benchmarks/fit_validated.py` (the objective and the method are in its "
-          "docstring); values in `pedmesh/data/validated.json`, every evaluation in "
+          "Written by `python -m pedmesh.fitting.fit_validated` (the objective and the method "
+          "are in its docstring); values in `pedmesh/data/validated.json`, every evaluation in "
           f"`docs/validation/{LAWS[LAW]['csv']}`, the full validation table of the fitted set "
           "in `validated/validation.md`.", "",
           f"Preset `{PRESET}` with fixed {', '.join(f'`{k}={v}`' for k, v in FIXED.items())}; "
@@ -870,11 +869,11 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                                         for d in FD_RHOS) for e in ENTRANCES)
                   + f" | {float(r['seconds']):.0f} |")
     if LAW in ("table", "crowd"):  # (the preset reads what this fit wrote)
-        cmd = ("python benchmarks/validation.py --preset validated --entrance "
+        cmd = ("python -m pedmesh.fitting.validate --preset validated --entrance "
                f"{ENTRANCE} --bottleneck --free --seeds 1,2,3,4,5,6 "
                "--out docs/validation/validated")
     else:
-        cmd = (f"python benchmarks/validation.py --preset {PRESET} {params} --entrance "
+        cmd = (f"python -m pedmesh.fitting.validate --preset {PRESET} {params} --entrance "
                f"{ENTRANCE} --bottleneck --free --out docs/validation/validated")
     md += ["", "Full table of the fitted set:", "", "```", cmd, "```", ""]
     OUT_MD.parent.mkdir(parents=True, exist_ok=True)
@@ -883,7 +882,8 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(prog="python -m pedmesh.fitting.fit_validated",
+                                 description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--law", choices=tuple(LAWS), default="crowd",
                     help="which fit: 'crowd' (default: the shipped one, dense crowds on top "
@@ -935,4 +935,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # before numba is imported anywhere
     sys.exit(main())

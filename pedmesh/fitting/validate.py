@@ -30,9 +30,9 @@
 3. ``--free``: three pedestrians 15 m apart in a 60 m corridor: mean speed [m/s] against
    the free walking speed 1.34 m/s.
 
-    python benchmarks/validation.py [--data DIR] [--preset NAME] [--param NAME=VALUE ...]
-                                    [--entrance door|replay] [--bottleneck] [--free]
-                                    [--only-extra] [--out DIR]
+    python -m pedmesh.fitting.validate [--data DIR] [--preset NAME] [--param NAME=VALUE ...]
+                                       [--entrance door|replay] [--bottleneck] [--free]
+                                       [--only-extra] [--out DIR]
 
 ``--data`` is the experiments directory (``data/*.txt``; default ``$PEDMESH_EXPERIMENTS``
 or ``<repo>/../shared/experiments``). Simulations run one at a time; set
@@ -40,9 +40,9 @@ or ``<repo>/../shared/experiments``). Simulations run one at a time; set
 ``runs/validation``): ``validation.json`` (every number, the errors, wall times),
 ``validation.md`` (the tables) and the runs in ``runs/<part>/<name>/``.
 
-As the objective of a parameter fit, from Python (with ``benchmarks/`` on ``sys.path``)::
+As the objective of a parameter fit (:mod:`pedmesh.fitting.fit_validated`), from Python::
 
-    from validation import validation_errors
+    from pedmesh.fitting.validate import validation_errors
     err = validation_errors({"r": 0.2, "A": 1500.0}, preset="weidmann",
                             parts=("corridor", "bottleneck"))
     err["rms"], err["corridor/uo-100-180-180/J_exit"], err["bottleneck/b=1.2"]
@@ -67,11 +67,13 @@ from typing import Any
 
 import numpy as np
 
-from pedmesh import Exit, MeasurementLine, Room, StartArea, load_room
-from pedmesh import validation as V
+import pedmesh.validation as V
+from pedmesh.geometry import Exit, MeasurementLine, Room, StartArea
+from pedmesh.io import load_room
 from pedmesh.mesh import triangulate
 
-ROOT = Path(__file__).resolve().parents[1]
+#: the source checkout (pedmesh/fitting/ -> the repository): its rooms, next to its data
+ROOT = Path(__file__).resolve().parents[2]
 ROOMS = ROOT / "geometries" / "experiments"
 MESH_OPTIONS = {"max_area": 2.0, "min_angle": 30.0, "feature_area": 0.3, "exit_size": None}
 FD_DENSITIES = (1.0, 2.0, 3.0)  # [1/m^2]
@@ -626,7 +628,8 @@ def write_report(results: Mapping[str, Any], out_dir: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     from pedmesh.parameters import parse_overrides as parse_param_overrides
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(prog="python -m pedmesh.fitting.validate",
+                                 description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=None, metavar="DIR",
                     help="experiments directory with data/*.txt (default: $PEDMESH_EXPERIMENTS "

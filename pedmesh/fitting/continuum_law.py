@@ -17,7 +17,7 @@ Writes ``pedmesh/data/fd_<preset>.json`` (the table as ``speed_table`` text, eve
 measurement, the protocol, the SFM parameters) unless ``--no-write``; the preset
 (:mod:`pedmesh.presets`) gives it to the continuum models as their ``speed_table``.
 
-    python benchmarks/continuum_law.py [--preset validated] [--seeds 2] [--no-write]
+    python -m pedmesh.fitting.continuum_law [--preset validated] [--seeds 2] [--no-write]
 
 About 2 minutes on two cores.
 """
@@ -31,16 +31,18 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+#: pedmesh/ (the package whose data/ the table is written into)
+PACKAGE = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m pedmesh.fitting.continuum_law",
+                                 description=__doc__.split("\n\n")[0])
     ap.add_argument("--preset", default="validated")
     ap.add_argument("--seeds", type=int, default=2, help="realisations per density (2)")
     ap.add_argument("--no-write", action="store_true", help="print, write nothing")
     args = ap.parse_args(argv)
-    from pedmesh import __version__
+    from pedmesh._version import __version__
     from pedmesh.calibration import (FD_BOX, FD_DENSITIES, FD_FILLED, FD_JAM_CAP, FD_LENGTH,
                                      FD_WIDTH, FD_WINDOW, fd_speed_table,
                                      measure_fundamental_diagram)
@@ -62,14 +64,14 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  {rho:8.3f}  {g * U_f:8.3f}  {g:8.4f}")
     if args.no_write:
         return 0
-    path = ROOT / "pedmesh" / "data" / f"fd_{args.preset}.json"
+    path = PACKAGE / "data" / f"fd_{args.preset}.json"
     record = {
         "speed_table": text, "U_f": U_f,
         "measurements": rows,
         "protocol": {"corridor_m": [FD_LENGTH, FD_WIDTH], "filled_to_x_m": FD_FILLED,
                      "box_m": FD_BOX, "window_s": FD_WINDOW, "densities": FD_DENSITIES,
                      "seeds": args.seeds, "jam_cap": FD_JAM_CAP,
-                     "script": "benchmarks/continuum_law.py",
+                     "script": "python -m pedmesh.fitting.continuum_law",
                      "functions": "pedmesh.calibration.measure_fundamental_diagram, "
                                   "fd_speed_table"},
         "sfm_parameters": {k: v for k, v in sfm.items() if k != "calibration"},
