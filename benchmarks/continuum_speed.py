@@ -22,6 +22,8 @@ solved every step: a reference, not the SFM, since this part is about numerics.
     python benchmarks/continuum_speed.py                      # part 1, 2 repeats
     python benchmarks/continuum_speed.py --sweep --plot docs/images/work_precision.png
 
+``--json FILE`` (part 1) also writes the table as JSON, from which the docs render it.
+
 The machine is shared and noisy: judge by the ratios, not the seconds.
 """
 
@@ -71,7 +73,7 @@ def run_cli(room: str, model: str, out: Path, extra: list[str]) -> float:
     return wall
 
 
-def part1(args) -> None:
+def part1(args) -> dict:
     models = args.models.split(",")
     if "sfm" not in models:
         models = ["sfm", *models]
@@ -95,6 +97,7 @@ def part1(args) -> None:
             f"{'best':>6} {'/SFM med':>8} {'best':>6} {'T50':>7} {'T90':>7} {'dT50':>7} "
             f"{'dT90':>7} {'curve':>7}")
     print(head)
+    rows = []
     for m in models:
         s = info[m]
         med, best = statistics.median(walls[m]), min(walls[m])
@@ -105,6 +108,11 @@ def part1(args) -> None:
               f"{med:>9.1f} {best:>6.1f} {med / med_sfm:>8.3f} {best / best_sfm:>6.3f} "
               f"{s['t_evac_50']:>7.2f} {s['t_evac_90']:>7.2f} {d50:>+6.2f}% {d90:>+6.2f}% "
               f"{err:>7.4f}")
+        rows.append(dict(model=m, cells=s["mesh"]["triangles"], steps=s["steps"], dt=s["dt"],
+                         wall_median=med, wall_best=best, ratio_median=med / med_sfm,
+                         ratio_best=best / best_sfm, t50=s["t_evac_50"], t90=s["t_evac_90"],
+                         d50=d50, d90=d90, curve=err))
+    return dict(room=args.room, repeats=args.repeats, extra=args.extra, rows=rows)
 
 
 UNIFORM = {"max_area": 0.5, "feature_area": None}
@@ -231,13 +239,18 @@ def main() -> None:
     p.add_argument("--fine-reference", action="store_true",
                    help="part 2: reference on max_area 0.125 m^2 (default 0.25)")
     p.add_argument("--plot", default=None, metavar="FILE")
+    p.add_argument("--json", default=None, metavar="FILE", help="part 1: write the table here")
     args = p.parse_args()
     if args.sweep:
         rows = part2(args)
         if args.plot:
             plot(rows, args.plot)
     else:
-        part1(args)
+        results = part1(args)
+        if args.json:
+            from _common import write_json  # benchmarks/ is the script's directory
+
+            write_json(args.json, results)
 
 
 if __name__ == "__main__":

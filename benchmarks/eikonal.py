@@ -7,7 +7,9 @@ grids with about the same node count (aligned with the obstacle; exit nodes fixe
 nodes strictly inside the obstacle masked). Also the plain Kimmel-Sethian march
 (``corner_radius=0``) and a variable-cost solve (array input, corner rays integrated).
 
-    python benchmarks/eikonal.py [--repeats 9]
+    python benchmarks/eikonal.py [--repeats 9] [--json FILE]
+
+``--json FILE`` also writes the tables as JSON, from which the docs render them.
 
 Targets (issue 3): at about 30k vertices a solve takes <= 8 ms and no more than 2x
 scikit-fmm order 1 per node in the same run.
@@ -59,7 +61,7 @@ def skfmm_run(room, n_nodes, order, repeats):
     return dict(nodes=int((~hole).sum()), t=t, l1=err.mean(), linf=err.max())
 
 
-def main(repeats: int = 9) -> None:
+def main(repeats: int = 9) -> dict:
     room = load_room(ROOT / "geometries" / "example3.json")
     rows = []
     for a in AREAS:
@@ -109,9 +111,22 @@ def main(repeats: int = 9) -> None:
     print(f"targets at {n} vertices: solve {1e3 * t:.2f} ms (<= 8 ms: "
           f"{'met' if t <= 8e-3 else 'NOT met'}), ratio to scikit-fmm order 1 per node "
           f"{ratio:.2f} (<= 2: {'met' if ratio <= 2 else 'NOT met'})")
+    return dict(room="geometries/example3.json", repeats=repeats, order_l1=float(o),
+                order_l1_plain=float(o0), rows=[
+                    dict(vertices=int(n), setup_s=ts, solve_s=t, l1=float(err.mean()),
+                         linf=float(err.max()), plain_solve_s=t0_, plain_l1=float(err0.mean()),
+                         plain_linf=float(err0.max()), variable_cost_solve_s=tv,
+                         skfmm1=s1, skfmm2=s2)
+                    for n, ts, t, t0_, tv, err, err0, s1, s2 in rows])
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=9)
-    main(ap.parse_args().repeats)
+    ap.add_argument("--json", default=None, metavar="FILE", help="write the tables here")
+    args = ap.parse_args()
+    results = main(args.repeats)
+    if args.json:
+        from _common import write_json  # benchmarks/ is the script's directory
+
+        write_json(args.json, results)

@@ -1,4 +1,4 @@
-"""Draw the README's pictures into docs/images/.
+"""Draw the pictures of the README and the docs into docs/images/.
 
     python docs/make_figures.py
 

@@ -1,5 +1,5 @@
 """Open a pedmesh run in ParaView and render it: the density, and the pedestrians as
-spheres coloured by speed. The README's ParaView steps are these, done by hand.
+spheres coloured by speed. The ParaView steps of docs/running.md are these, done by hand.
 
     xvfb-run -a pvbatch docs/paraview_check.py RUN_DIR OUT.png [--time T]
     xvfb-run -a pvbatch docs/paraview_check.py --mesh MESH.vtu OUT.png

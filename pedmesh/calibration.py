@@ -243,7 +243,7 @@ def periodic_virial(x: np.ndarray, L, params: SocialForceParams | None = None,
 def lattice_virial(rho: float, params: SocialForceParams | None = None, cutoff: float = 1.2,
                    shells: int = 12) -> float:
     """The analytic virial of a perfect triangular lattice at density ``rho``:
-    P = (rho / 4) sum over lattice vectors R != 0 (|R| < cutoff) of |R| Phi(|R|)."""
+    ``P = (rho / 4) sum over lattice vectors R != 0 (|R| < cutoff) of |R| Phi(|R|)``."""
     p = params or SocialForceParams()
     a = math.sqrt(2.0 / (math.sqrt(3.0) * rho))  # lattice constant
     tot = 0.0
@@ -421,7 +421,7 @@ def pedestrian_stress(*, positions: np.ndarray, velocities: np.ndarray,
     1/2 sum_j r_ij (x) f_ij / m (the simulator's pair force, cut off at ``cutoff`` m; wall
     forces are not bulk stress and are left out) plus, if ``kinetic``, the velocity
     fluctuation v' (x) v' about the kernel-averaged velocity (width ``R``, default the
-    model's). The pressure of a region is sum_i tr(S_i) / (2 |region|)."""
+    model's). The pressure of a region is ``sum_i tr(S_i) / (2 |region|)``."""
     from scipy.spatial import cKDTree
 
     from .analysis import kernel_velocity
@@ -465,7 +465,7 @@ def flowing_stress(mesh, *, params: SocialForceParams | None = None, every: floa
     * ``p``: pressure ``<rho_i tr S_i / 2>`` [ped/s^2] (virial + kinetic), ``p_virial``;
     * ``normal_diff``: (S_ee - S_nn) / 2 of the bin-mean tensor relative to the pressure
       (positive: pushed harder along the walking direction than across it);
-    * ``shear``: |S_en| of the bin-mean tensor relative to the pressure;
+    * ``shear``: ``|S_en|`` of the bin-mean tensor relative to the pressure;
     * ``dev_individual``: mean size of the individual deviators relative to the mean
       individual pressure (anisotropy of single pedestrians' contacts);
     * ``p_eos``: the equilibrium law (shipped calibration) at ``rho``.

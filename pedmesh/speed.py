@@ -82,7 +82,7 @@ def shape(law, rho):
 @nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def flux_and_slope(law, U_f, rho):
     """The flow f(rho) = rho U_f g(rho - shift) [ped/(m s)] at rho = max(rho, 0) and
-    |f'(rho)| [m/s]."""
+    ``|f'(rho)|`` [m/s]."""
     r = max(rho, 0.0)
     x = r - law[4]  # (below the shift: free flow)
     if law[0] == EXPONENTIAL:

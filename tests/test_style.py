@@ -1,4 +1,4 @@
-"""House rules that a reader sees: no line of code over 100 characters."""
+"""House rules that a reader sees: no line of code over 100 characters, a short README."""
 
 from __future__ import annotations
 
@@ -24,3 +24,9 @@ def test_no_line_over_100_characters():
             for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
             if len(line) > LIMIT]
     assert long == []
+
+
+def test_readme_is_a_guide():
+    """The README is the short guide (issue 32); the reference lives in docs/."""
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= 250

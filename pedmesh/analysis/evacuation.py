@@ -19,7 +19,7 @@ def evacuation_curve(*, exit_times: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def curve_distance(*, t1: np.ndarray, n1: np.ndarray, t2: np.ndarray, n2: np.ndarray,
                    n_total: float, dt: float = 0.5) -> float:
-    """Mean of |N1(t) - N2(t)| / N over a common grid (step ``dt``) up to the later of the
+    """Mean of ``|N1(t) - N2(t)| / N`` over a common grid (step ``dt``) up to the later of the
     two ends; each curve is held at its last value after it ends."""
     end = max(float(np.max(t1)), float(np.max(t2)))
     g = np.arange(0.0, end + dt / 2, dt)
@@ -29,7 +29,7 @@ def curve_distance(*, t1: np.ndarray, n1: np.ndarray, t2: np.ndarray, n2: np.nda
 
 
 def density_l1(*, mesh, rho1: np.ndarray, rho2: np.ndarray) -> float:
-    """L1 distance [ped] between two cell density fields: sum_i |T_i| |rho1 - rho2|."""
+    """L1 distance [ped] between two cell density fields: ``sum_i |T_i| |rho1 - rho2|``."""
     return float(np.dot(mesh.areas, np.abs(np.asarray(rho1) - np.asarray(rho2))))
 
 

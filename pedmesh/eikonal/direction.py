@@ -328,7 +328,7 @@ class DirectionField:
         m = mesh.n_triangles
         #: (m, 2) P1 gradient of phi per triangle (0 where a vertex value is infinite).
         self.triangle_gradients = np.empty((m, 2))
-        #: (m, 2) unit direction -grad(phi)/|grad(phi)| per triangle.
+        #: (m, 2) unit direction ``-grad(phi)/|grad(phi)|`` per triangle.
         self.triangle_directions = np.empty((m, 2))
         _descent(_basis_gradients(mesh), mesh.triangles, phi, self.triangle_gradients,
                  self.triangle_directions)

@@ -15,7 +15,7 @@ def load_room(path: str | Path) -> Room:
     """Read a room from a geometry file, choosing the reader by suffix.
 
     ``.json`` is the native format, ``.geojson`` GeoJSON and ``.dxf`` a DXF drawing with
-    role layers; see the README for each.
+    role layers; see docs/rooms.md for each.
 
     Raises
     ------

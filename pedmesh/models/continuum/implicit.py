@@ -1,7 +1,7 @@
 """The implicit pressure correction of the semi-implicit (IMEX) finite-volume step.
 
 A barotropic model ``rho_t + div q = 0``, ``q_t + div(q (x) q / rho) + grad p(rho) = S`` has
-two speeds: the crowd's own (|u|, about 1 m/s) and the sound speed ``sqrt(p'(rho))`` of its
+two speeds: the crowd's own (``|u|``, about 1 m/s) and the sound speed ``sqrt(p'(rho))`` of its
 pressure (3-4 m/s in the queue at a door for ``eos``, 7 m/s for the mean-field pressure).
 An explicit scheme must resolve the faster one. The semi-implicit step resolves only the
 crowd: every forward-Euler stage of the SSP Runge-Kutta step becomes
@@ -9,7 +9,7 @@ crowd: every forward-Euler stage of the SSP Runge-Kutta step becomes
 1. an explicit stage of the model *without* its pressure in the interior fluxes (transport,
    relaxation, sources; CWENO3 and the flux limiter as before; exits keep their exact
    Godunov flux with the pressure) giving ``(rho*, q*)``, stable and positive under the CFL
-   condition of the material speed |u|;
+   condition of the material speed ``|u|``;
 2. this correction, implicit in the density (in the manner of Degond, Hua & Navoret, J.
    Comput. Phys. 230, 2011, and the all-speed schemes of Haack, Jin & Liu, 2012): the mass
    flux is the one of the *new* momentum ``q* - dt grad p(rho_new)``::
@@ -51,9 +51,9 @@ from .barotropic import ISOTHERMAL, _p_c, _prim
 
 __all__ = ["ImplicitPressure"]
 
-#: faces whose coupling a_f / |T| is below this take their pressure flux explicitly (from
+#: faces whose coupling ``a_f / |T|`` is below this take their pressure flux explicitly (from
 #: the explicit stage's densities: stable and positive far below its bound of 1/3, and
-#: within (a_f/|T|)^2 of the implicit flux), the others implicitly; so only the dense part
+#: within ``(a_f/|T|)^2`` of the implicit flux), the others implicitly; so only the dense part
 #: of the crowd, where the sound is fast, enters the linear system
 A_IMPLICIT = 1e-2
 #: relative residual of the conjugate gradients (the correction is then applied as fluxes,

@@ -1,6 +1,6 @@
 """Third-order CWENO reconstruction on triangles (Dumbser-Boscheri-Semplice-Russo 2017).
 
-For cell i with centroid x_i, area |T_i| and h_i = sqrt(|T_i|), in scaled coordinates
+For cell i with centroid x_i, area ``|T_i|`` and ``h_i = sqrt(|T_i|)``, in scaled coordinates
 xi = (x - x_i)/h_i, a polynomial is ``p = qbar_i + sum_k a_k phi_k`` with the mean-free basis
 
     phi_1 = xi, phi_2 = eta, phi_3 = xi^2 - <xi^2>_i, phi_4 = xi eta - <xi eta>_i,

@@ -717,6 +717,6 @@ class FVController:
 
     @property
     def mass_error(self) -> float:
-        """|inside + out - initial| / initial."""
+        """``|inside + out - initial| / initial``."""
         inside = self.solver.mass(self.state.Q)
         return abs(inside + float(self.state.outflow.sum()) - self.mass0) / max(self.mass0, 1e-300)

@@ -1,0 +1,133 @@
+"""Render the measured figures of the docs from the benchmarks' own output files.
+
+    python docs/render_figures.py          # writes docs/_generated/figures_*.md
+
+``docs/conf.py`` runs it at every build, so a figure on a page is always the one in the
+file a benchmark wrote; no measured figure is typed into a page by hand. The sources:
+
+* ``docs/data/continuum_speed.json``: ``python benchmarks/continuum_speed.py --json FILE``
+  (every continuum model against the social force model, whole process);
+* ``docs/images/work_precision.csv``: ``python benchmarks/continuum_speed.py --sweep
+  --plot docs/images/work_precision.png`` (the CSV is written beside the picture);
+* ``docs/data/eikonal.json``: ``python benchmarks/eikonal.py --json FILE``.
+
+To update a figure, re-run its benchmark with the same options into the same file and
+commit the file; the JSON records the command, date, machine and load average it was
+measured with, and the page says so under each table.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parent
+DATA = DOCS / "data"
+OUT = DOCS / "_generated"
+
+
+def _table(header: list[str], rows: list[list[str]], align: str = "") -> list[str]:
+    """A Markdown table; ``align`` has one character per column, 'l' or 'r' (default r)."""
+    align = align.ljust(len(header), "r")
+    lines = ["| " + " | ".join(header) + " |",
+             "|" + "|".join("---" if a == "l" else "---:" for a in align) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return lines
+
+
+def _provenance(record: dict, source: str) -> str:
+    m = record["machine"]
+    load = ", ".join(f"{x:g}" for x in m.get("load_average", []))
+    return (f"Rendered from `{source}`: `{record['command']}` on {record['date']}, pedmesh "
+            f"{record['pedmesh']}, Python {record['python']}, {m['cpus']} CPUs "
+            f"({m['platform']}), load average {load or 'not recorded'} at the end of the "
+            "run. The machine may be shared: compare the ratios of one table, not seconds "
+            "across tables.")
+
+
+def continuum_speed(path: Path = DATA / "continuum_speed.json") -> str:
+    record = json.loads(path.read_text())
+    res = record["results"]
+    rows = [[f"`{r['model']}`", f"{r['cells']:,}", f"{r['steps']:,}", f"{r['dt']:.3f}",
+             f"{r['wall_median']:.1f}", f"{r['wall_best']:.1f}", f"{r['ratio_median']:.3f}",
+             f"{r['ratio_best']:.3f}", f"{r['t50']:.2f}", f"{r['t90']:.2f}",
+             "" if r["model"] == "sfm" else f"{r['d50']:+.2f} %",
+             "" if r["model"] == "sfm" else f"{r['d90']:+.2f} %",
+             "" if r["model"] == "sfm" else f"{r['curve']:.4f}"]
+            for r in res["rows"]]
+    head = ["model", "cells", "steps", "mean dt [s]", "wall [s] median", "best",
+            "wall / SFM median", "best", "T50 [s]", "T90 [s]", "T50 vs SFM", "T90 vs SFM",
+            "curve vs SFM"]
+    extra = " ".join(res.get("extra") or []) or "no extra options"
+    lines = [f"Room `{res['room']}` ({extra}), {res['repeats']} interleaved repeat(s).", ""]
+    lines += _table(head, rows, "l")
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
+def work_precision(path: Path = DOCS / "images" / "work_precision.csv") -> str:
+    with open(path, newline="") as f:
+        data = list(csv.DictReader(f))
+    rows = [[f"`{r['model']}`", r["label"], f"{int(r['cells']):,}", f"{int(r['steps']):,}",
+             f"{float(r['wall']):.1f}", f"{float(r['d50']):+.2f} %", f"{float(r['d90']):+.2f} %",
+             f"{float(r['curve']):.4f}" if r["curve"] else "not recorded"] for r in data]
+    head = ["model", "setting", "cells", "steps", "wall [s]", "T50 error", "T90 error",
+            "curve error"]
+    lines = _table(head, rows, "ll")
+    lines += ["", f"Rendered from `{path.relative_to(DOCS.parent).as_posix()}`, the rows "
+              "`benchmarks/continuum_speed.py --sweep --plot docs/images/work_precision.png` "
+              "wrote beside the picture (the CSV records no date or machine).", ""]
+    return "\n".join(lines)
+
+
+def eikonal(path: Path = DATA / "eikonal.json") -> str:
+    record = json.loads(path.read_text())
+    res = record["results"]
+    rows = [[f"{r['vertices']:,}", f"{1e3 * r['setup_s']:.0f}", f"{1e3 * r['solve_s']:.2f}",
+             f"{1e9 * r['solve_s'] / r['vertices']:.0f}", f"{r['l1']:.4f}", f"{r['linf']:.4f}",
+             f"{1e3 * r['plain_solve_s']:.2f}", f"{r['plain_l1']:.4f}", f"{r['plain_linf']:.4f}",
+             f"{1e3 * r['variable_cost_solve_s']:.2f}"] for r in res["rows"]]
+    head = ["vertices", "set-up [ms]", "solve [ms]", "ns/vertex", "L1 [m]", "Linf [m]",
+            "plain FMM solve [ms]", "plain L1 [m]", "plain Linf [m]", "variable-cost solve [ms]"]
+    lines = [f"pedmesh's fast marching on `{res['room']}`, unit cost, against the exact "
+             "geodesic distance; *plain* is Kimmel-Sethian without the corner rays "
+             f"(`corner_radius=0`); median of {res['repeats']} repeats.", ""]
+    lines += _table(head, rows)
+    rows = [[f"{r['vertices']:,}", f"{r['skfmm1']['nodes']:,}", f"{1e3 * r['skfmm1']['t']:.2f}",
+             f"{r['skfmm1']['l1']:.4f}", f"{1e3 * r['skfmm2']['t']:.2f}",
+             f"{r['skfmm2']['l1']:.4f}",
+             f"{(r['solve_s'] / r['vertices']) / (r['skfmm1']['t'] / r['skfmm1']['nodes']):.2f}"]
+            for r in res["rows"]]
+    head = ["pedmesh vertices", "grid nodes", "order 1 [ms]", "order 1 L1 [m]", "order 2 [ms]",
+            "order 2 L1 [m]", "pedmesh / order 1, per node"]
+    lines += ["", "scikit-fmm on Cartesian grids of about the same node count, in the same "
+              "run:", ""]
+    lines += _table(head, rows)
+    lines += ["", f"Observed order of the L1 error: {res['order_l1']:.2f} with the corner rays, "
+              f"{res['order_l1_plain']:.2f} without.", "",
+              _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
+SECTIONS = {"figures_continuum_speed.md": continuum_speed,
+            "figures_work_precision.md": work_precision,
+            "figures_eikonal.md": eikonal}
+
+
+def main(out_dir: Path = OUT) -> list[Path]:
+    """Write every section into ``out_dir`` (a file only if it changed); returns the paths."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, render in SECTIONS.items():
+        path = out_dir / name
+        text = render()
+        if not path.exists() or path.read_text(encoding="utf-8") != text:
+            path.write_text(text, encoding="utf-8")
+        written.append(path)
+    return written
+
+
+if __name__ == "__main__":
+    for p in main():
+        print(f"wrote {p}")
