@@ -25,6 +25,7 @@ sys.path.insert(0, str(DOCS))
 import pedmesh  # noqa: E402
 import render_cli  # noqa: E402
 import render_figures  # noqa: E402
+import render_parameters  # noqa: E402
 
 # autosummary's walk over the package imports every submodule, and importing
 # pedmesh/__main__.py runs the command line (on Sphinx's own arguments): stand in an empty
@@ -33,6 +34,7 @@ sys.modules.setdefault("pedmesh.__main__", types.ModuleType("pedmesh.__main__"))
 
 render_cli.main()
 render_figures.main()
+render_parameters.main()
 
 project = "pedmesh"
 author = "the pedmesh developers"

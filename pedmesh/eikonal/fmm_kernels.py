@@ -137,7 +137,7 @@ def triangle_update(cx, cy, ax, ay, bx, by, ta, tb, f):
     """Arrival time at C = (cx, cy) from a planar front through A (time ``ta``) and B (``tb``).
 
     With E the edge vectors (A - C, B - C) and Q = (E E^T)^-1, the front's gradient g has
-    E g = (ta, tb) - T_C and |g| = f (the slowness [s/m]): a quadratic in T_C. Its larger
+    E g = (ta, tb) - T_C and ``|g| = f`` (the slowness [s/m]): a quadratic in T_C. Its larger
     root is accepted when the characteristic reaches C from inside the triangle, i.e. the
     weights w = Q (T_C - (ta, tb)) are >= 0; otherwise the better edge update is returned.
     Geometry is recomputed from the coordinates: cheaper than loading stored matrices.

@@ -12,6 +12,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from .._version import __version__
+from .. import parameters as P
 from .._signals import request_stop, stop_on_signals, stop_requested
 from ..errors import ParameterError, PedmeshError, SimulationError
 from ..models import CONTINUUM, DenseFrames, ModelEntry, get_model
@@ -184,7 +185,10 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
         if not isinstance(run, RunModel):
             raise TypeError(f"model '{name}' does not implement "
                             "pedmesh.models.protocol.RunModel")
-        extra: dict[str, Any] = {"parameters": run.parameters()}
+        params = run.parameters()
+        # the units of the declared parameters (pedmesh.parameters), for the reader
+        extra: dict[str, Any] = {"parameters": params, "units": {
+            k: P.PARAMETERS[k].unit for k in params if k in P.PARAMETERS}}
         if run.warnings:
             extra["warnings"] = list(run.warnings)
             for w in run.warnings:

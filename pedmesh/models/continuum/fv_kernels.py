@@ -203,7 +203,7 @@ def fct_blend(FH, FL, e2t, t2e, inv_areas, Q, dt, rho_eps, F, theta, use_vel, vl
     the low-order update over the decreases the antidiffusive fluxes would cause, and per
     edge the smallest factor of the cells it would decrease. ``FH``, ``FL`` (k, nv) are edge
     fluxes integrated over the edges, oriented L -> R; ``t2e`` (m, 3) each cell's edges
-    (:func:`cell_edges`); ``inv_areas`` = 1/|T_i| [1/m^2]. ``UL`` (nv, m), ``P`` and ``R_``
+    (:func:`cell_edges`); ``inv_areas`` = ``1/|T_i|`` [1/m^2]. ``UL`` (nv, m), ``P`` and ``R_``
     (5, m) are work arrays. ``dQ`` (m, nv) receives the divergence of F, as
     :func:`divergence` computes it. Three parallel passes: cells (margins), edges (factors
     and blended fluxes), cells (divergence). Only the active cells ``cact`` and the
@@ -375,14 +375,14 @@ def _gather_divergence(F, e2t, t2e, inv_areas, out, cact):
 
 @nb.njit(**FAST)
 def divergence(F, e2t, t2e, inv_areas, out, cact):
-    """out_i = -(1/|T_i|) sum over its edges ``t2e[i]`` of the outward edge flux (F oriented
-    L -> R) for the active cells ``cact``, 0 elsewhere; ``inv_areas`` = 1/|T_i|."""
+    """out_i = ``-(1/|T_i|)`` sum over its edges ``t2e[i]`` of the outward edge flux (F oriented
+    L -> R) for the active cells ``cact``, 0 elsewhere; ``inv_areas`` = ``1/|T_i|``."""
     _gather_divergence(F, e2t, t2e, inv_areas, out, cact)
 
 
 @nb.njit(**PAR)
 def cfl_dt(alpha_edge, lengths, e2t, t2e, areas, cfl, cact):
-    """dt = cfl * min_i 2|T_i| / sum_e l_e alpha_e over the active cells ``cact`` (the
+    """dt = cfl * ``min_i 2|T_i| / sum_e`` l_e alpha_e over the active cells ``cact`` (the
     positivity bound of first-order Rusanov is cfl = 1); ``t2e`` (m, 3) each cell's edges
     (:func:`cell_edges`)."""
     m = areas.shape[0]
@@ -427,7 +427,7 @@ def launch_threads(a):
 
 @nb.njit(**FAST)
 def cell_total(areas, Q):
-    """sum_i |T_i| Q[i, 0]: the number of pedestrians in the cells [ped]. (A compiled loop,
+    """``sum_i |T_i| Q[i, 0]``: the number of pedestrians in the cells [ped]. (A compiled loop,
     not ``np.dot``: OpenBLAS hands a dot product of this size to a second thread, which
     waits a full time slice, about 4 ms, when the other core is busy.)"""
     m = areas.shape[0]
