@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from .errors import ParameterError
+from .parameters import DEFAULT_T_END_S
 
 __all__ = ["simulate", "build"]
 
@@ -72,7 +73,8 @@ def build(room, model: str = "sfm", *, preset: str | None = None,
 
 def simulate(room, model: str = "sfm", *, preset: str | None = None,
              params: Mapping[str, Any] | None = None, out_dir: str | Path | None = None,
-             t_end: float = 1000.0, mesh=None, mesh_options: Mapping[str, Any] | None = None,
+             t_end: float = DEFAULT_T_END_S, mesh=None,
+             mesh_options: Mapping[str, Any] | None = None,
              quiet: bool = True, **options: Any):
     """Run ``model`` on ``room`` until everyone has left or ``t_end`` [s] and return the
     result (see the module docstring). ``params``: parameter values by name (see ``pedmesh

@@ -592,7 +592,7 @@ def measure_fundamental_diagram(preset: str | None = None, seeds: int = 2,
     with tempfile.TemporaryDirectory(prefix="pedmesh-fd-") as tmp:
         for rho0 in densities:
             room = fd_corridor(rho0)
-            mesh = triangulate(room, max_area=2.0)
+            mesh = triangulate(room)
             for seed in range(1, seeds + 1):
                 out = Path(tmp) / f"{rho0:g}-{seed}"
                 t0 = time.perf_counter()

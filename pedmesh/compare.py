@@ -25,6 +25,7 @@ from .analysis import (
     reference_flow,
 )
 from .errors import ParameterError
+from .parameters import DEFAULT_T_END_S
 from .run.results import RunResult
 
 __all__ = ["ModelSpec", "parse_model_specs", "run_comparison", "ComparisonResult"]
@@ -133,7 +134,7 @@ def _fd_samples(res: RunResult, mesh, every: float = 1.0):
 
 
 def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, *,
-                   t_end: float = 1000.0, quiet: bool = False, geometry: str | None = None,
+                   t_end: float = DEFAULT_T_END_S, quiet: bool = False, geometry: str | None = None,
                    mesh_options: dict | None = None, density_times: Sequence[float] | None = None,
                    reuse: bool = True, plots: bool = True,
                    preset: str | None = None) -> ComparisonResult:

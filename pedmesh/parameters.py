@@ -28,15 +28,18 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["Parameter", "PARAMETERS", "TABLE1", "TABLE1_SOURCE", "declare", "get",
-           "field", "check_fields", "check_values", "parse_overrides", "defaults",
-           "DEFAULTS"]
+__all__ = ["Parameter", "PARAMETERS", "TABLE1", "TABLE1_SOURCE", "DEFAULT_T_END_S", "DEFAULTS",
+           "declare", "get", "field", "check_fields", "check_values", "parse_overrides",
+           "defaults"]
 
 #: where the paper's values come from
 TABLE1_SOURCE = "paper, Table 1"
 WEIDMANN_SOURCE = ("Weidmann (1993), Transporttechnik der Fussgaenger, ETH Zurich "
                    "(RiMEA 4.1.1)")
 ADRIAN_SOURCE = "Adrian, Seyfried & Sieben, J. R. Soc. Interface 2020"
+
+#: [s] a run stops at this simulated time if people remain (``--t-end``)
+DEFAULT_T_END_S = 1000.0
 
 #: the kinds of value a parameter takes
 KINDS = ("real", "integer", "switch", "text")

@@ -26,11 +26,14 @@ examples:
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
+    from ..parameters import DEFAULT_T_END_S
+
     p.add_argument("geometry", metavar="GEOMETRY", help="room file (.json, .geojson or .dxf)")
     p.add_argument("--models", required=True, metavar="LIST",
                    help="comma-separated models, e.g. sfm,mac1,rdue,pw:c0=0.5")
-    p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
-                   help="stop each run at this simulated time in s (default: 1000)")
+    p.add_argument("--t-end", type=float, default=DEFAULT_T_END_S, metavar="T",
+                   help=f"stop each run at this simulated time in s "
+                        f"(default: {DEFAULT_T_END_S:g})")
     add_preset_arg(p)
     add_mesh_args(p)
     p.add_argument("--times", default=None, metavar="T1,T2,...",

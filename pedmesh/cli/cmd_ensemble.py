@@ -38,6 +38,8 @@ examples:
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
+    from ..parameters import DEFAULT_T_END_S
+
     p.add_argument("geometry", metavar="GEOMETRY", help="room file (.json, .geojson or .dxf)")
     p.add_argument("--model", default="sfm", help="model to run (default: sfm)")
     p.add_argument("--members", type=int, default=10, metavar="N",
@@ -54,8 +56,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="address of an existing Dask scheduler, e.g. tcp://HOST:8786")
     p.add_argument("--workers", type=int, default=None, metavar="K",
                    help="worker processes of the local cluster (default: number of cores)")
-    p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
-                   help="stop each run at this simulated time in s (default: 1000)")
+    p.add_argument("--t-end", type=float, default=DEFAULT_T_END_S, metavar="T",
+                   help=f"stop each run at this simulated time in s "
+                        f"(default: {DEFAULT_T_END_S:g})")
     add_preset_arg(p)
     add_mesh_args(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -27,21 +27,25 @@ def _area_or_none(text: str):
 
 def add_mesh_args(p: argparse.ArgumentParser) -> None:
     """Mesh options shared by every command that meshes a room."""
-    p.add_argument("--max-area", type=float, default=2.0, metavar="A",
-                   help="largest triangle area in m^2, in the open (default: 2, edges of "
-                        "about 2.1 m)")
-    p.add_argument("--feature-area", type=_area_or_none, default=0.3, metavar="F",
+    from ..mesh.triangulate import FEATURE_AREA, MAX_AREA, MAX_CELLS, MIN_ANGLE
+
+    p.add_argument("--max-area", type=float, default=MAX_AREA, metavar="A",
+                   help=f"largest triangle area in m^2, in the open (default: {MAX_AREA:g}, "
+                        f"edges of about {(4 * MAX_AREA / 3 ** 0.5) ** 0.5:.1f} m)")
+    p.add_argument("--feature-area", type=_area_or_none, default=FEATURE_AREA, metavar="F",
                    help="triangle area in m^2 at exits, corners and walls, growing to "
-                        "--max-area away from them (default: 0.3, edges of about 0.83 m); "
+                        f"--max-area away from them (default: {FEATURE_AREA:g}, edges of "
+                        f"about {(4 * FEATURE_AREA / 3 ** 0.5) ** 0.5:.2f} m); "
                         "'none': a uniform mesh of --max-area, as is any F >= A")
-    p.add_argument("--min-angle", type=float, default=30.0, metavar="Q",
-                   help="smallest triangle angle in degrees (default: 30, at most 34)")
+    p.add_argument("--min-angle", type=float, default=MIN_ANGLE, metavar="Q",
+                   help=f"smallest triangle angle in degrees (default: {MIN_ANGLE:g}, at most "
+                        "34)")
     p.add_argument("--exit-size", type=float, default=None, metavar="H",
                    help="grade the mesh to edges of about H m at the exits (default: uniform)")
     p.add_argument("--max-cells", type=float, default=None, metavar="N",
                    help="stop with an error, before meshing, if the mesh would have more than "
                         "N triangles (estimated as 1.6 x walkable area / max-area, or from "
-                        "the exit grading; default: 2000000; 'inf' for no limit)")
+                        f"the exit grading; default: {MAX_CELLS:.0f}; 'inf' for no limit)")
 
 
 def add_args(p: argparse.ArgumentParser) -> None:

@@ -8,22 +8,26 @@ from pathlib import Path
 from .cmd_mesh import add_mesh_args, mesh_options
 from .cmd_presets import add_preset_arg
 
+def _files() -> str:
+    """The output files (pedmesh.run.output.OUTPUT_FILES) as an aligned list."""
+    import textwrap
+
+    from ..run.output import OUTPUT_FILES
+
+    rows = []
+    for name, what in OUTPUT_FILES.items():
+        lines = textwrap.wrap(what, 90 - 23)
+        rows.append(f"  {name:<20} {lines[0]}")
+        rows += [" " * 23 + line for line in lines[1:]]
+    return "\n".join(rows)
+
+
 HELP = "simulate an evacuation with a model (sfm, ...) and write the results"
 DESCRIPTION = """\
 Simulate the crowd of a room's start areas until everyone has left (or --t-end) and write
 into the output directory, as the run goes:
 
-  summary.json         model, status, n_initial, n_evacuated, t_evac_50/90/100 [s],
-                       steps, dt, wall time, every parameter used and the run's settings
-  evacuation.csv       t,evacuated (cumulative number out), every 0.1 s
-  outflow.csv          t and the flow [ped/s] through each exit since the previous row
-  density.pvd          density on the mesh [ped/m^2], one frame per output interval
-  pedestrians.pvd      (particle models) positions with velocity, speed, local density
-  trajectories.txt     (particle models) id frame x y at --trajectory-rate frames/s, for
-                       PedPy's load_trajectory_from_txt; a leaver's last row is on the exit
-  trajectories.sqlite  (particle models) the same in JuPedSim's SQLite format, for
-                       pedpy.load_trajectory_from_jupedsim_sqlite
-  exits.csv            (particle models) id,exit,t of everyone who left
+{files}
 
 The run owns its output directory: a directory holding an earlier pedmesh run is cleared
 first (its files only), a non-empty directory that is not a pedmesh run is refused, and so
@@ -35,10 +39,12 @@ examples:
   pedmesh run geometries/example2.json --model sfm --out runs/ex2-sfm
   pedmesh run geometries/example3.json --model sfm --param dt=0.005 --param A=1500
   pedmesh run geometries/corridor_bottleneck.json --model rdue --preset weidmann
-"""
+""".replace("{files}", _files())
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
+    from ..parameters import DEFAULT_T_END_S
+
     from ..models import model_names
 
     p.add_argument("geometry", metavar="GEOMETRY", help="room file (.json, .geojson or .dxf)")
@@ -46,8 +52,9 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help=f"model to run (default: sfm; available: {', '.join(model_names())})")
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="set a model or numerics parameter (repeatable)")
-    p.add_argument("--t-end", type=float, default=1000.0, metavar="T",
-                   help="stop at this simulated time in s if people remain (default: 1000)")
+    p.add_argument("--t-end", type=float, default=DEFAULT_T_END_S, metavar="T",
+                   help=f"stop at this simulated time in s if people remain "
+                        f"(default: {DEFAULT_T_END_S:g})")
     add_preset_arg(p)
     add_mesh_args(p)
     p.add_argument("--out", metavar="DIR", default=None,

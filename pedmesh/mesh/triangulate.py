@@ -21,12 +21,14 @@ from ..geometry.tolerances import EXIT_TOLERANCE
 from .triangle_mesh import BoundaryKind, TriMesh
 
 __all__ = ["triangulate", "exit_size_field", "feature_size_field", "size_fields", "estimate_cells",
-           "check_max_cells", "MAX_CELLS", "MAX_AREA", "FEATURE_AREA"]
+           "check_max_cells", "MAX_CELLS", "MAX_AREA", "FEATURE_AREA", "MIN_ANGLE"]
 
 #: default largest triangle area [m^2], far from exits, corners and walls
 MAX_AREA = 2.0
 #: default triangle area [m^2] at exits, corners and walls (edges of about 0.83 m)
 FEATURE_AREA = 0.3
+#: default smallest triangle angle [degrees]
+MIN_ANGLE = 30.0
 #: default growth of the edge length [m per m] away from exits and corners, and from walls
 FEATURE_GROWTH = 0.2
 WALL_GROWTH = 0.4
@@ -246,7 +248,7 @@ def estimate_cells(room, max_area: float, fields: list | None = None,
 def triangulate(
     room,
     max_area: float = MAX_AREA,
-    min_angle: float = 30.0,
+    min_angle: float = MIN_ANGLE,
     *,
     feature_area: float | None = FEATURE_AREA,
     exit_size: float | None = None,

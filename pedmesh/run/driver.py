@@ -13,6 +13,7 @@ import numpy as np
 
 from .._version import __version__
 from .. import parameters as P
+from ..parameters import DEFAULT_T_END_S
 from .._signals import request_stop, stop_on_signals, stop_requested
 from ..errors import ParameterError, PedmeshError, SimulationError
 from ..models import CONTINUUM, DenseFrames, ModelEntry, get_model
@@ -93,7 +94,7 @@ def build_model(room, mesh, model: str, *, preset: str | None = None,
 
 
 def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = None,
-              t_end: float = 1000.0, out_dir: str | Path = "run", quiet: bool = False,
+              t_end: float = DEFAULT_T_END_S, out_dir: str | Path = "run", quiet: bool = False,
               geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
               model_options: dict[str, Any] | None = None,
               preset: str | None = None) -> dict[str, Any]:
@@ -129,7 +130,7 @@ class RunPlan:
 
 
 def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = None,
-             t_end: float = 1000.0, geometry: str | None = None,
+             t_end: float = DEFAULT_T_END_S, geometry: str | None = None,
              mesh_options: Mapping[str, Any] | None = None,
              model_options: Mapping[str, Any] | None = None,
              preset: str | None = None) -> RunPlan:

@@ -1,28 +1,12 @@
 """Run output written as the run goes, so an interrupted run keeps what it computed.
 
-Files in the output directory:
-
-* ``summary.json``: model, status, evacuation times, counts, parameters, timing, and the
-  run's ``settings`` (room file hash, model, preset, parameters, t_end, mesh and output
-  options, pedmesh version); written at the start (status ``running``) and rewritten at the
-  end with status ``finished``, ``stopped at t_end``, ``interrupted`` or ``failed`` (with
-  the error). A ``running`` run whose process is gone reads as ``interrupted``
-  (:func:`run_status`);
-* ``evacuation.csv``: ``t,evacuated`` (cumulative number of pedestrians out), a row every
-  ``sample_interval`` seconds, flushed as written;
-* ``outflow.csv``: ``t`` and the flow [ped/s] through each exit, the mean over the interval
-  since the previous row (crossings for particle models, the integrated boundary flux for
-  continuum models), so that summing flow x interval gives the people who left;
-* ``density.pvd`` + frames: the density on the mesh; ``pedestrians.pvd`` + ``.vtp`` frames
-  (particle models): positions with velocity, speed and local density;
-* ``trajectories.txt`` (particle models): ``id frame x y`` in metres at their own frame rate
-  (default 10 frames/s), readable by PedPy's ``load_trajectory_from_txt``; each evacuated
-  pedestrian's last row is the point where they crossed the exit;
-* ``trajectories.sqlite`` (particle models): the same in JuPedSim's SQLite schema (version
-  2, with the walkable area), for ``pedpy.load_trajectory_from_jupedsim_sqlite`` and
-  JuPedSim's own tools;
-* ``exits.csv`` (particle models): ``id,exit,t`` of every pedestrian who left;
-* ``.lock``: held (``flock``) while a run writes into the directory.
+The files of the output directory are listed, with what each holds, in
+:data:`OUTPUT_FILES` (``pedmesh run --help`` prints the same list). ``summary.json`` is
+written at the start (status ``running``) and rewritten at the end with status
+``finished``, ``stopped at t_end``, ``interrupted`` or ``failed`` (with the error); a
+``running`` run whose process is gone reads as ``interrupted`` (:func:`run_status`). The
+time series are flushed as written. ``.lock`` is held (``flock``) while a run writes into
+the directory.
 
 A run owns its directory: it refuses a non-empty directory that is not a pedmesh run,
 holds a lock while it runs (a second run into the same directory is an error), and starts
@@ -48,13 +32,32 @@ from ..analysis.evacuation import evacuation_times, evacuation_times_from_curve
 from ..errors import PedmeshError
 from ..io.vtk import PVDWriter
 
+#: the files of a run folder and what each holds (``pedmesh run --help`` and the docs print
+#: this list); "(particle models)" marks those only particle models write
+OUTPUT_FILES: dict[str, str] = {
+    "summary.json": "model, status, n_initial, n_evacuated, t_evac_50/90/100 [s], steps, "
+                    "dt, wall time, every parameter used with its unit, and the run's "
+                    "settings (room file hash, model, preset, overrides, t_end, mesh)",
+    "evacuation.csv": "t,evacuated (cumulative number out), every sample_interval (0.1 s)",
+    "outflow.csv": "t and the flow [ped/s] through each exit, the mean since the previous "
+                   "row (crossings, or the integrated boundary flux of a continuum model)",
+    "density.pvd": "density on the mesh [ped/m^2] (and velocity [m/s]), one frame per "
+                   "output_interval",
+    "pedestrians.pvd": "(particle models) positions with velocity, speed, local density",
+    "trajectories.txt": "(particle models) id frame x y [m] at the trajectory rate, for "
+                        "PedPy's load_trajectory_from_txt; a leaver's last row is on the exit",
+    "trajectories.sqlite": "(particle models) the same in JuPedSim's SQLite format (with the "
+                           "walkable area), for pedpy.load_trajectory_from_jupedsim_sqlite",
+    "exits.csv": "(particle models) id,exit,t of everyone who left",
+}
+
 try:  # POSIX advisory locks; elsewhere the process id in summary.json is checked
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
-__all__ = ["RunWriter", "RunFolderError", "evacuation_times", "evacuation_times_from_curve",
-           "file_sha256", "run_status", "RUN_FILES"]
+__all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "evacuation_times",
+           "evacuation_times_from_curve", "file_sha256", "run_status", "RUN_FILES"]
 
 #: names (glob patterns) of everything a run writes into its directory
 RUN_FILES = ("summary.json", "evacuation.csv", "outflow.csv", "outflow_kernel.csv",

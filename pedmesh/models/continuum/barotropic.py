@@ -33,6 +33,7 @@ from ...errors import ParameterError
 from .fv_kernels import BLOCK, FAST, NCHUNK, PAR
 from .base import MacroModel
 from ...speed import SpeedLaw, shape
+from ... import parameters as P
 from ...parameters import DEFAULTS as D
 
 __all__ = ["BarotropicModel", "PressureLaw"]
@@ -523,8 +524,7 @@ class BarotropicModel(MacroModel):
                  rho_jam: float = D['rho_jam'], gamma_w: float = D['gamma_w'],
                  rho_shift: float = D['rho_shift'], speed_table: str = D['speed_table']) -> None:
         for k, v in (("U_f", U_f), ("beta", beta), ("tau", tau), ("rho_cut", rho_cut)):
-            if not (np.isfinite(v) and v > 0):
-                raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
+            P.get(k).check(v)  # (the declarations' bounds, pedmesh.parameters)
         #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
         self.speed = SpeedLaw(speed_law, float(U_f), float(beta), float(rho_jam), float(gamma_w),
                               float(rho_shift), table=speed_table)

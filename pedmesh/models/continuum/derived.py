@@ -43,6 +43,7 @@ from ...errors import ParameterError
 from .physics import LongRange, SFMFriction, SFMRepulsion, gamma1, gamma2
 from .barotropic import BarotropicModel, PressureLaw
 from .adapter import BASE_PARAMETERS, SFM_PARAMETERS, register_continuum_model
+from ... import parameters as P
 from ...parameters import DEFAULTS as D
 
 __all__ = ["Mac1", "Mac2"]
@@ -52,8 +53,7 @@ _SFM_KEYS = ("A", "B", "k", "kappa", "m", "r")
 
 def _sfm_kernels(A=D['A'], B=D['B'], k=D['k'], kappa=D['kappa'], m=D['m'], r=D['r']):
     for name, v in (("A", A), ("B", B), ("k", k), ("kappa", kappa), ("m", m), ("r", r)):
-        if not (np.isfinite(v) and v > 0):
-            raise ParameterError(f"parameter '{name}' must be positive, got {v!r}")
+        P.get(name).check(v)  # (the declarations' bounds, pedmesh.parameters)
     return SFMRepulsion(A=A, B=B, k=k, m=m, r_ij=2 * r), SFMFriction(kappa=kappa, m=m, r_ij=2 * r)
 
 
@@ -215,11 +215,9 @@ class Mac2(BarotropicModel):
             from .physics import gamma1 as _g1
 
             gamma1 = _g1(phi)
-        if not (np.isfinite(gamma1) and gamma1 > 0):
-            raise ParameterError(f"parameter 'gamma1' must be positive, got {gamma1!r}")
-        for k_, v in (("lr_strength", lr_strength), ("lr_length", lr_length)):
-            if not (np.isfinite(v) and v > 0):
-                raise ParameterError(f"parameter '{k_}' must be positive, got {v!r}")
+        for k_, v in (("gamma1", gamma1), ("lr_strength", lr_strength),
+                      ("lr_length", lr_length)):
+            P.get(k_).check(v)
         self.gamma1 = float(gamma1)
         self.lr = LongRange(strength=float(lr_strength), length=float(lr_length))
         law = PressureLaw.quadratic(self.gamma1) if local else PressureLaw.isothermal(0.0)

@@ -4,12 +4,10 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from ...errors import ParameterError
+from ... import parameters as P
+from ...parameters import DEFAULTS as D
 from .adapter import BASE_PARAMETERS, register_continuum_model
 from .barotropic import BarotropicModel, PressureLaw
-from ...parameters import DEFAULTS as D
 
 __all__ = ["PayneWhitham"]
 
@@ -18,8 +16,7 @@ class PayneWhitham(BarotropicModel):
     """Payne-Whitham: momentum flux rho u (x) u + c0^2 rho I, relaxation to U_e(rho) e."""
 
     def __init__(self, c0: float = D['c0'], **kw) -> None:
-        if not (np.isfinite(c0) and c0 >= 0):
-            raise ParameterError(f"parameter 'c0' must be >= 0 [m/s], got {c0!r}")
+        P.get("c0").check(c0)
         super().__init__("pw", PressureLaw.isothermal(c0), **kw)
         self.c0 = float(c0)
 

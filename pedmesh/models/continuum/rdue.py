@@ -21,6 +21,7 @@ from .fv_kernels import BLOCK, FAST, NCHUNK, PAR
 from ...speed import SpeedLaw, flux_and_slope
 from .adapter import SPEED_PARAMETERS, register_continuum_model
 from .base import MacroModel
+from ... import parameters as P
 from ...parameters import DEFAULTS as D
 
 __all__ = ["RDUE"]
@@ -111,8 +112,7 @@ class RDUE(MacroModel):
                  gamma_w: float = D['gamma_w'], rho_shift: float = D['rho_shift'],
                  speed_table: str = D['speed_table']) -> None:
         for k, v in (("U_f", U_f), ("beta", beta)):
-            if not (np.isfinite(v) and v > 0):
-                raise ParameterError(f"parameter '{k}' must be positive, got {v!r}")
+            P.get(k).check(v)  # (the declarations' bounds, pedmesh.parameters)
         self.U_f, self.beta = float(U_f), float(beta)
         #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
         self.speed = SpeedLaw(speed_law, self.U_f, self.beta, float(rho_jam), float(gamma_w),

@@ -67,10 +67,10 @@ class SocialForceParams:
         """The speed law array (:func:`pedmesh.speed.shape`) the social force model reads
         at its Gaussian kernel density, which includes one's own share: with
         ``density_self`` 0 the law is shifted by that share, 1/(pi R^2)."""
-        law = self.speed.array
+        speed = self.speed
         if not self.density_self:
-            law[4] = 1.0 / (math.pi * self.R * self.R)
-        return law
+            speed = dataclasses.replace(speed, shift=1.0 / (math.pi * self.R * self.R))
+        return speed.array
 
     def desired_speed(self, rho):
         """U_e(rho) [m/s] (paper eq_desired_speed: U_f exp(-beta rho) with the exponential
