@@ -30,6 +30,7 @@ keeps every finished member.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import json
 import math
@@ -298,7 +299,7 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     ``scheduler`` (an address such as ``tcp://10.0.0.5:8786``) or a new ``LocalCluster``
     with ``workers`` worker processes (default: the number of cores), closed at the end.
     """
-    import pandas as pd
+    import pandas  # noqa: F401  (the ensemble extra: without it, fail before any work)
 
     from .models import get_model
 
@@ -307,6 +308,36 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         raise EnsembleError(f"{geometry}: no such file")
     entry = get_model(model)
     name = entry.name
+    _check_options(entry, members, seed, workers, t_end)
+    seeded = entry.random
+    sweep, overrides = _checked_sweep(sweep, overrides)
+    mesh_options = {"max_area": max_area, "min_angle": min_angle, "feature_area": feature_area,
+                    "exit_size": exit_size}
+    preset = _check_room(geometry, preset, mesh_options, max_cells)
+    out = Path(out)
+    plan = _plan(geometry, name, members, out, overrides=overrides, sweep=sweep, seed=seed,
+                 t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=seeded)
+    rows, todo = _resume(plan, out)
+    out.mkdir(parents=True, exist_ok=True)
+    frame = functools.partial(_frame, rows, plan, _COLUMNS[:3] + list(sweep) + _COLUMNS[3:])
+    _write_csv(out / "ensemble.csv", frame())
+    meta = {"geometry": geometry, "model": name, "members": members, "seed": seed,
+            "overrides": overrides, "sweep": sweep, "t_end": t_end, "mesh": mesh_options,
+            "preset": preset}
+    if not quiet and len(todo) < len(plan):
+        print(f"pedmesh: {len(plan) - len(todo)} of {len(plan)} members already finished "
+              "(skipped)", file=sys.stderr)
+    if todo:
+        _compute(todo, rows, plan, name, geometry, t_end, mesh_options, preset, seeded, out,
+                 frame, client=client, scheduler=scheduler, workers=workers, quiet=quiet,
+                 max_cells=max_cells)
+    return _finish(out, frame(), sweep, meta)
+
+
+def _check_options(entry, members, seed, workers, t_end) -> None:
+    """EnsembleError unless ``members`` is a positive integer, ``seed`` a non-negative one,
+    ``workers`` None or a positive integer, ``t_end`` a positive number of seconds, and
+    ``members`` 1 for a model (registry ``entry``) without random input."""
     if isinstance(members, bool) or not isinstance(members, (int, np.integer)) or members < 1:
         raise EnsembleError(f"members must be a positive integer, got {members!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -315,10 +346,15 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         raise EnsembleError(f"workers must be a positive integer, got {workers!r}")
     if not (math.isfinite(t_end) and t_end > 0):
         raise EnsembleError(f"t_end must be a positive number of seconds, got {t_end!r}")
-    seeded = entry.random
-    if not seeded and members > 1:
-        raise EnsembleError(f"model '{name}' has no random input: its members would all be "
-                            "the same; use members=1 (with a sweep)")
+    if not entry.random and members > 1:
+        raise EnsembleError(f"model '{entry.name}' has no random input: its members would all "
+                            "be the same; use members=1 (with a sweep)")
+
+
+def _checked_sweep(sweep: Mapping[str, Sequence[Any]] | None,
+                   overrides: Mapping[str, Any] | None) -> tuple[dict[str, list], dict]:
+    """The sweep and the fixed overrides as plain dicts; EnsembleError if a swept parameter
+    has no values or is also set."""
     sweep = {k: list(v) for k, v in (sweep or {}).items()}
     for k, v in sweep.items():
         if not v:
@@ -327,18 +363,29 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     both = sorted(set(overrides) & set(sweep))
     if both:
         raise EnsembleError(f"parameter '{both[0]}' is both set and swept")
-    from .io import load_room
+    return sweep, overrides
 
-    room = load_room(geometry)  # a bad room file fails here, once, not in every member
+
+def _check_room(geometry: str, preset: str | None, mesh_options: Mapping[str, Any],
+                max_cells: float | None) -> str | None:
+    """Load the room once on the client, so that a bad room file or an oversized mesh fails
+    here and not in every member, and return the preset in use (``preset``, else the room
+    file's, else the default)."""
+    from .io import load_room
     from .presets import resolve_preset
 
-    preset = resolve_preset(preset, room)  # (the room file's, else the default)
-    mesh_options = {"max_area": max_area, "min_angle": min_angle, "feature_area": feature_area,
-                    "exit_size": exit_size}
-    _check_mesh_size(room, mesh_options, max_cells)  # and so does an oversized mesh
-    out = Path(out)
-    plan = _plan(geometry, name, members, out, overrides=overrides, sweep=sweep, seed=seed,
-                 t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=seeded)
+    room = load_room(geometry)
+    preset = resolve_preset(preset, room)
+    _check_mesh_size(room, mesh_options, max_cells)
+    return preset
+
+
+def _resume(plan: list[_Member], out: Path) -> tuple[dict[str, dict], list[_Member]]:
+    """The first rows of ensemble.csv (members already finished in ``out`` with their
+    results and the worker recorded in an earlier ensemble.csv, the others ``pending``)
+    and the members still to run."""
+    import pandas as pd
+
     rows: dict[str, dict] = {}
     todo: list[_Member] = []
     previous = {}
@@ -357,32 +404,28 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         else:
             prev = previous.get(m.member, {})
             rows[m.member] = {**base, **done, "worker": prev.get("worker", ""), "error": ""}
-    out.mkdir(parents=True, exist_ok=True)
-    columns = _COLUMNS[:3] + list(sweep) + _COLUMNS[3:]
+    return rows, todo
 
-    def frame():
-        f = pd.DataFrame([rows[m.member] for m in plan])
-        for c in columns:
-            if c not in f:
-                f[c] = None
-        return f[columns]
 
-    _write_csv(out / "ensemble.csv", frame())
-    meta = {"geometry": geometry, "model": name, "members": members, "seed": seed,
-            "overrides": overrides, "sweep": sweep, "t_end": t_end, "mesh": mesh_options,
-            "preset": preset}
-    if not quiet and len(todo) < len(plan):
-        print(f"pedmesh: {len(plan) - len(todo)} of {len(plan)} members already finished "
-              "(skipped)", file=sys.stderr)
-    if todo:
-        _compute(todo, rows, plan, name, geometry, t_end, mesh_options, preset, seeded, out,
-                 frame, client=client, scheduler=scheduler, workers=workers, quiet=quiet,
-                 max_cells=max_cells)
-    result = frame()
+def _finish(out: Path, result, sweep: dict, meta: dict):
+    """Write the final ensemble.csv, ensemble.json and evacuation_bands.png of the members'
+    DataFrame ``result`` to ``out``, and return ``result``."""
     _write_csv(out / "ensemble.csv", result)
     _summaries(out, result, sweep, meta)
     _bands(out, result, sweep)
     return result
+
+
+def _frame(rows: Mapping[str, dict], plan: list[_Member], columns: list[str]):
+    """The current rows of the members in ``plan`` as a DataFrame with ``columns`` (None
+    where a row has no value yet)."""
+    import pandas as pd
+
+    f = pd.DataFrame([rows[m.member] for m in plan])
+    for c in columns:
+        if c not in f:
+            f[c] = None
+    return f[columns]
 
 
 def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | None) -> None:

@@ -159,6 +159,19 @@ class FVSolver:
         self.threads = _threads(self.options.threads, mesh.n_triangles)
         self.recon = build_reconstruction(mesh)
         model.bind(mesh)
+        self._set_pressure_treatment(boundary_state)
+        self._set_cfl_and_stages()
+        self.boundary_state = boundary_state
+        self._set_edges()
+        self._set_full_active_set()
+        self._set_geometry()
+        self._set_directions(direction)
+
+    # ------------------------------------------------------------------ set-up
+    def _set_pressure_treatment(self, boundary_state: Callable | None) -> None:
+        """Explicit or semi-implicit pressure (``implicit``, ``xmodel``): implicit by default
+        for a model with a pressure law, unless ``boundary_state`` (verification) is given."""
+        model = self.model
         #: the implicit pressure correction of the semi-implicit step (None: explicit), and
         #: the model whose fluxes and sources the explicit stages evaluate (the model itself,
         #: or its part without the pressure)
@@ -173,7 +186,11 @@ class FVSolver:
             from .implicit import ImplicitPressure
 
             self.xmodel = model.explicit_part()
-            self.implicit = ImplicitPressure(mesh, model)
+            self.implicit = ImplicitPressure(self.mesh, model)
+
+    def _set_cfl_and_stages(self) -> None:
+        """The CFL number and the Runge-Kutta stages (``cfl``, ``stages``)."""
+        model = self.model
         #: the CFL number and the Runge-Kutta stages in use (the options, else the defaults
         #: of the scheme and model: see FVOptions)
         cfl = self.options.cfl
@@ -187,11 +204,27 @@ class FVSolver:
             explicit_pressure = self.implicit is None and law is not None and law.pressured
             stages = 3 if explicit_pressure else 2
         self.stages = int(stages)
-        self.boundary_state = boundary_state
+
+    def _set_edges(self) -> None:
+        """The mesh's edge connectivity as the kernels read it: the cells on each edge
+        (``e2t``), each cell's edges (``t2e``), each edge's kind, and the interior, wall
+        (and obstacle) and exit edges with each exit edge's exit number."""
+        mesh = self.mesh
         e2t = mesh.edge_triangles
         self.e2t = e2t
         self.t2e = K.cell_edges(mesh)  # (m, 3) each cell's edges, for the gathering kernels
         self.kind = mesh.edge_kind
+        self.interior = np.flatnonzero(e2t[:, 1] >= 0)
+        self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL)
+                                    | (self.kind == BoundaryKind.OBSTACLE))
+        self.exits = np.flatnonzero(self.kind == BoundaryKind.EXIT)
+        self.exit_owner = mesh.edge_owner[self.exits]
+        self.n_exits = len(mesh.exit_names)
+
+    def _set_full_active_set(self) -> None:
+        """The active set before the first step: every cell updated and every edge with a
+        flux (as without FVOptions.active_set)."""
+        mesh = self.mesh
         #: the active set of the current step: cells updated, edges with a flux (both cells
         #: active); all of them without FVOptions.active_set
         self.cact = np.ones(mesh.n_triangles, np.bool_)
@@ -199,24 +232,29 @@ class FVSolver:
         self.n_active = mesh.n_triangles
         self._live_faces = None  # (the live edges in the implicit correction's numbering)
         self._lo_key = None  # (max_dt's state: Q, t, sum of Q; see residual)
-        self.interior = np.flatnonzero(e2t[:, 1] >= 0)
-        self.walls = np.flatnonzero((self.kind == BoundaryKind.WALL)
-                                    | (self.kind == BoundaryKind.OBSTACLE))
-        self.exits = np.flatnonzero(self.kind == BoundaryKind.EXIT)
-        self.exit_owner = mesh.edge_owner[self.exits]
-        self.n_exits = len(mesh.exit_names)
+
+    def _set_geometry(self) -> None:
+        """Cell areas [m^2] and their inverses, edge lengths [m], the unit edge normals per
+        edge and Gauss point, the 3 interior quadrature points [m] of each cell, and the
+        reference scale of the conserved variables for the reconstruction."""
+        from .reconstruction import INTERIOR_BARY
+
+        mesh = self.mesh
         self.areas = mesh.areas
         self.inv_areas = 1.0 / mesh.areas
         self.lengths = mesh.edge_lengths
         n = mesh.edge_normals
         self.nx2 = np.repeat(n[:, 0], 2).reshape(-1, 2)  # per edge and Gauss point
         self.ny2 = np.repeat(n[:, 1], 2).reshape(-1, 2)
-        P = mesh.points[mesh.triangles]
-        from .reconstruction import INTERIOR_BARY
+        corners = mesh.points[mesh.triangles]
+        self.int_pts = np.einsum("pb,mbd->mpd", INTERIOR_BARY, corners)  # (m, 3, 2)
+        self.qref = np.ones(self.model.n_vars)
 
-        self.int_pts = np.einsum("pb,mbd->mpd", INTERIOR_BARY, P)  # (m, 3, 2)
-        self.qref = np.ones(model.n_vars)
-        # desired direction at the quadrature points
+    def _set_directions(self, direction: Callable | None) -> None:
+        """The desired direction at the edge Gauss points, the interior points and the
+        centroids: from the fixed ``direction`` (verification), else zero until the first
+        route solve (with an eikonal solver if the model needs routes)."""
+        mesh = self.mesh
         self._fixed_direction = direction
         self.e_edge = np.zeros((mesh.n_edges, 2, 2))
         self.e_int = np.zeros((mesh.n_triangles, 3, 2))
@@ -228,7 +266,7 @@ class FVSolver:
                                                self.recon.edge_pt[..., 1]), float)
             self.e_int = np.asarray(direction(self.int_pts[..., 0], self.int_pts[..., 1]), float)
             self.e_cell = np.asarray(direction(mesh.centroids[:, 0], mesh.centroids[:, 1]), float)
-        elif model.needs_route:
+        elif self.model.needs_route:
             from ...eikonal import EikonalSolver
 
             self._eikonal = EikonalSolver(mesh)

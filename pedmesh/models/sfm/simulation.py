@@ -112,7 +112,29 @@ class Simulation:
         self._rng = None if seed is None else np.random.default_rng(seed)
         self.params = params or SocialForceParams()
         self.numerics = numerics or SFMNumerics()
-        p, nm = self.params, self.numerics
+        x, tri = self._start_positions(positions)
+        N = len(x)
+        self._set_population(population, N)
+        v = self._start_velocities(velocities, x)
+        self.n_initial = N
+        self.ids = np.arange(N, dtype=np.int64)
+        present = ~np.isfinite(self.arrival)
+        self._check_overlaps(x[present], self.ids[present])
+        self._place_crowd(x, v, tri, present)
+        self._init_records(N)
+        self._allocate_work(N)
+        self._set_cutoffs()
+        self._set_neighbour_grid(N)
+        self.walls = WallSet.from_mesh(mesh, self.rc_w)
+        self._set_space_requirement(N)
+        self._law = self.params.kernel_law()  # the desired-speed law (pedmesh.speed)
+        self._set_routes(reroute, desired_velocity)
+
+    # ------------------------------------------------------------------ set-up
+    def _start_positions(self, positions: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+        """The (N, 2) start positions [m] (default: the room's start areas), checked to be
+        finite and in the walkable area, and the (N,) triangle of each."""
+        mesh = self.mesh
         if positions is None:
             if mesh.room is None or not mesh.room.start_areas:
                 raise SimulationError("no start positions: give positions or a room with "
@@ -131,17 +153,25 @@ class Simulation:
                 f"pedestrian {i} starts at ({x[i, 0]:.3f}, {x[i, 1]:.3f}) m, outside the walkable "
                 "area (outside the room or inside an obstacle)"
             )
-        self._set_population(population, len(x))
+        return x, tri
+
+    @staticmethod
+    def _start_velocities(velocities: np.ndarray | None, x: np.ndarray) -> np.ndarray:
+        """The (N, 2) initial velocities [m/s] (default: at rest), checked to be finite."""
+        N = len(x)
         v = (np.zeros_like(x) if velocities is None
              else np.array(velocities, np.float64).reshape(N, 2))
         if not np.all(np.isfinite(v)):
             raise SimulationError("initial velocities contain non-finite values")
-        self.n_initial = N
-        self.ids = np.arange(N, dtype=np.int64)
-        present = ~np.isfinite(self.arrival)
-        self._check_overlaps(x[present], self.ids[present])
+        return v
+
+    def _place_crowd(self, x: np.ndarray, v: np.ndarray, tri: np.ndarray,
+                     present: np.ndarray) -> None:
+        """Store the crowd as state ``x``, ``v``, ``tri`` with the ``n`` people present from
+        the start in the first rows. The entrances' people wait outside: their attributes
+        are kept by id (``rad_of``, ``u0_of``, ``toff_of``) and rows ``n..`` are unused."""
         self.n_waiting = 0
-        if not present.all():  # the entrances' people wait outside (rows n.. are unused)
+        if not present.all():
             self.rad_of, self.u0_of, self.toff_of = (self.rad.copy(), self.u0.copy(),
                                                      self.toff.copy())
             self._set_entrances(x)
@@ -152,6 +182,10 @@ class Simulation:
         self.v = v
         self.tri = tri
         self.n = int(present.sum())
+
+    def _init_records(self, N: int) -> None:
+        """The clock (``t`` [s], ``steps``), the densities at the pedestrians [ped/m^2], the
+        exit records by id, the reflection count and the timers, for ``N`` pedestrians."""
         self.rho = np.zeros(N)
         self.t = 0.0
         self.steps = 0
@@ -163,7 +197,12 @@ class Simulation:
         self.exit_point = np.full((N, 2), np.nan)
         self.n_reflections = 0
         self.timers = _Timers()
-        # work arrays
+
+    def _allocate_work(self, N: int) -> None:
+        """Work arrays of the step for ``N`` pedestrians: Runge-Kutta stage states, forces,
+        densities, desired directions, exit crossings and the pair list (enlarged by
+        :meth:`step` when full)."""
+        x = self.x
         self._xs = np.empty_like(x)
         self._vs = np.empty_like(x)
         self._F = np.empty_like(x)
@@ -174,31 +213,54 @@ class Simulation:
         self._pi = np.empty(max(32 * N, 1024), np.int64)
         self._pj = np.empty(max(32 * N, 1024), np.int64)
         self.last_pair_count = 0
-        # neighbour grid over the room: cells at least as large as the pair-list radius (the
-        # force cut-off plus the skin; the density cut-off, plus the skin if the density is
-        # re-evaluated at later stages from the same list)
-        # (bodies larger than r: the cut-offs grow with them, so the cut force stays the same)
+
+    def _set_cutoffs(self) -> None:
+        """The cut-off radii [m] of the pair forces (``rc_f``), the kernel density
+        (``rc_d``) and the wall forces (``rc_w``). Bodies larger than ``params.r`` widen
+        the force cut-offs by the excess, so that the cut force stays the same."""
+        p, nm = self.params, self.numerics
         extra = max(float(self.rad.max()) - p.r, 0.0)
         self.rc_f = nm.force_cutoff + 2.0 * extra
         self.rc_d = nm.density_cutoff * p.R
         self.rc_w = max(nm.force_cutoff - p.r, 1e-6) + extra
+
+    def _set_neighbour_grid(self, N: int) -> None:
+        """The neighbour grid over the room (origin, inverse cell size [1/m], cell counts
+        and the cell lists for ``N`` pedestrians): cells at least as large as the pair-list
+        radius (the force cut-off plus the skin; the density cut-off, plus the skin if the
+        density is re-evaluated at later stages from the same list)."""
         cell = max(self.rc_f + PAIR_SKIN,
-                   self.rc_d + (PAIR_SKIN if nm.density_stages == 3 else 0.0))
-        x0, y0, x1, y1 = mesh.bounds
+                   self.rc_d + (PAIR_SKIN if self.numerics.density_stages == 3 else 0.0))
+        x0, y0, x1, y1 = self.mesh.bounds
         self._cx0, self._cy0 = x0 - cell, y0 - cell
         self._cinv = 1.0 / cell
         self._cnx = int((x1 - x0 + 2 * cell) * self._cinv) + 1
         self._cny = int((y1 - y0 + 2 * cell) * self._cinv) + 1
         self._cell_start = np.zeros(self._cnx * self._cny + 1, np.int64)
         self._cell_order = np.zeros(N, np.int64)
-        self.walls = WallSet.from_mesh(mesh, self.rc_w)
-        # the speed-dependent space requirement (shrink [m], t_space [s]; shrink 0: off)
+
+    def _set_space_requirement(self, N: int) -> None:
+        """The speed-dependent space requirement (shrink [m], t_space [s], vision, crowd
+        stretch and knee; shrink 0: off), its work arrays for ``N`` pedestrians and the
+        free-width map it reads (see :meth:`_set_width_map`); ``shrink`` must stay below
+        every body radius."""
+        p = self.params
         self._space = np.array([p.shrink, p.t_space, p.vision, p.crowd_stretch, p.crowd_knee],
                                np.float64)
         self._rs = np.empty(N)
         self._cf = np.zeros(N)
         self._ue = np.empty(N)
-        self.width_map = None  # the free width of queueing or crowding (crowd_stretch > 1)
+        self._set_width_map()
+        if p.shrink > 0 and p.shrink >= float(self.rad.min()):
+            raise SimulationError(f"parameter 'shrink' ({p.shrink:g} m) must be less than every "
+                                  f"body radius (smallest {float(self.rad.min()):g} m)")
+
+    def _set_width_map(self) -> None:
+        """The free width [m] of queueing or crowding over the walkable area (``width_map``
+        and its packed form ``_wmap``, ``_wgeo`` for the kernels), only with
+        ``crowd_stretch > 1``; else None and placeholders."""
+        p, mesh = self.params, self.mesh
+        self.width_map = None
         self._wmap, self._wgeo = np.zeros((1, 1)), np.zeros(5)
         if p.crowd_stretch > 1.0:
             from .crowding import width_map
@@ -213,11 +275,12 @@ class Simulation:
             wm = self.width_map
             self._wmap = wm.width
             self._wgeo = np.array([wm.x0, wm.y0, 1.0 / wm.cell, p.queue_width, p.crowd_width])
-        if p.shrink > 0 and p.shrink >= float(self.rad.min()):
-            raise SimulationError(f"parameter 'shrink' ({p.shrink:g} m) must be less than every "
-                                  f"body radius (smallest {float(self.rad.min()):g} m)")
-        self._law = p.kernel_law()  # the desired-speed law (pedmesh.speed)
-        # routes
+
+    def _set_routes(self, reroute: bool, desired_velocity: np.ndarray | None) -> None:
+        """The route choice: a constant desired velocity [m/s] if one is given, else the
+        eikonal route potential (one solver per distinct set of target exits), solved here
+        for the initial crowd; sets the packed steering table ``_dpack`` either way."""
+        mesh = self.mesh
         self.reroute = bool(reroute)
         if desired_velocity is not None:
             self._const_u = np.asarray(desired_velocity, np.float64).reshape(2)
