@@ -45,7 +45,8 @@ import numpy as np
 
 from .errors import ParameterError, PedmeshError
 from .run.results import FINISHED_STATUSES
-from .mesh.triangulate import triangulate
+from .mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
+from .parameters import DEFAULT_T_END_S
 
 __all__ = ["ensemble", "EnsembleError", "member_seeds", "parse_sweep"]
 
@@ -288,8 +289,9 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
              out: str | Path = "ensemble", *, overrides: Mapping[str, Any] | None = None,
              sweep: Mapping[str, Sequence[Any]] | None = None, seed: int = 0,
              client=None, scheduler: str | None = None, workers: int | None = None,
-             t_end: float = 1000.0, max_area: float = 2.0, min_angle: float = 30.0,
-             feature_area: float | None = 0.3, exit_size: float | None = None,
+             t_end: float = DEFAULT_T_END_S, max_area: float = MAX_AREA,
+             min_angle: float = MIN_ANGLE, feature_area: float | None = FEATURE_AREA,
+             exit_size: float | None = None,
              max_cells: float | None = None,
              preset: str | None = None, quiet: bool = False):
     """Run an ensemble (see module docstring) and return its members as a pandas

@@ -19,8 +19,9 @@ controller.
   like the paper's, with ``route_interval=0``). A model's stiff source
   (``has_split_source``, e.g. mac1's friction) is applied by Strang splitting: half a step
   of it alone before the Runge-Kutta step and half a step after.
-* :class:`FVController` decides *when*: the CFL time step (a step refused by a stage is
-  taken again, shorter), output times and stopping.
+* :class:`FVController` decides *when*, one step at a time: the CFL time step (a step
+  refused by a stage is taken again, shorter; a step may be shortened to end on a time
+  the driver asks for). Output times and stopping are the run driver's.
 """
 
 from __future__ import annotations
@@ -668,7 +669,10 @@ def model_rho_cut(model: MacroModel) -> float:
 
 
 class FVController:
-    """Time loop of a finite-volume run: CFL step, routes, stopping.
+    """Takes the steps of a finite-volume run, one per :meth:`advance`: the route update,
+    the CFL step (shortened to end on a given time, never lengthened), and a stage that
+    outruns its own stability bound taken again with a shorter step. Output times and
+    stopping are the run driver's (:mod:`pedmesh.run.driver`).
 
     Parameters
     ----------
