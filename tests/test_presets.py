@@ -189,3 +189,17 @@ def test_continuum_values_reach_only_the_continuum_models(monkeypatch):
     assert preset_overrides("two", mp("eos"), {"speed_table": "0:1 3:0"},
                             continuum=True)["speed_table"] == "0:1 3:0"
     assert pre.overrides()["speed_table"] == "0:1 1:0.5"  # (without a model: the values)
+
+
+def test_presets_lists_a_models_declared_parameters(capsys):
+    """`pedmesh presets --model NAME` prints what --param may set, from the declarations."""
+    from pedmesh import parameters as P
+
+    assert main(["presets", "--model", "eos"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("eos (continuum)")
+    for name in ("calibration", "cfl", "A", "empty_below"):
+        assert f"  {name} " in out
+    assert "\n  dt " not in out  # (the social force model's)
+    assert f"{P.get('U_f').default:g} m/s" in out
+    assert main(["presets", "--model", "nope"]) == 2

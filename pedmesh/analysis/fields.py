@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ..parameters import DEFAULTS as D
+
 __all__ = ["kernel_density", "kernel_velocity", "vertex_to_cell"]
 
 
@@ -21,7 +23,7 @@ def _pairs(positions, points, cutoff):
     return row, col, d
 
 
-def kernel_density(*, positions: np.ndarray, points: np.ndarray, R: float = 0.7,
+def kernel_density(*, positions: np.ndarray, points: np.ndarray, R: float = D['R'],
                    cutoff: float = 3.0) -> np.ndarray:
     """Gaussian kernel density (paper eq3, eq4) [ped/m^2] of pedestrians at ``points``.
 
@@ -48,7 +50,8 @@ def kernel_density(*, positions: np.ndarray, points: np.ndarray, R: float = 0.7,
 
 
 def kernel_velocity(*, positions: np.ndarray, velocities: np.ndarray, points: np.ndarray,
-                    R: float = 0.7, cutoff: float = 3.0) -> np.ndarray:
+                    R: float = D['R'],
+                    cutoff: float = D['density_cutoff']) -> np.ndarray:
     """Kernel-averaged velocity (paper, outflow section) [m/s] at ``points``:
     ``u(x) = sum_j v_j w(|x_j - x|) / sum_j w(|x_j - x|)``; zero where no pedestrian is
     within the cut-off."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from .fields import kernel_density, kernel_velocity
+from ..parameters import DEFAULTS as D
 
 __all__ = ["exit_gauss_points", "continuum_outflow", "particle_outflow", "crossing_rate"]
 
@@ -34,7 +35,7 @@ def continuum_outflow(*, mesh, rho: np.ndarray, velocity: np.ndarray) -> np.ndar
 
 
 def particle_outflow(*, mesh, positions: np.ndarray, velocities: np.ndarray,
-                     R: float = 0.7) -> np.ndarray:
+                     R: float = D['R']) -> np.ndarray:
     """Outflow [ped/s] through each exit of a particle crowd, from the kernel density and the
     kernel-averaged velocity at the exit (the paper's definition for the particle model)."""
     out = np.zeros(len(mesh.exit_names))

@@ -32,7 +32,7 @@ every finished member.
 examples:
   pedmesh ensemble geometries/l_shaped.json --members 20 --out runs/lshape-ens
   pedmesh ensemble geometries/corridor_bottleneck.json --members 10 \\
-      --sweep U_f=0.8,1.034,1.3 --out runs/speed-study
+      --sweep U_f=0.8,1.0,1.3 --out runs/speed-study
   pedmesh ensemble geometries/example2.json --members 50 --scheduler tcp://10.0.0.5:8786
 """
 

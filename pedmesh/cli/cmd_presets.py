@@ -12,9 +12,13 @@ List the parameter presets that --preset NAME selects on `pedmesh run`, `compare
 overrides, then the preset, then the model's defaults; a preset sets only the parameters a
 model has. A run that names no preset uses the default (marked below).
 
+With --model NAME it lists instead every parameter that model takes (what --param NAME=VALUE
+may set): its default, unit, allowed values and meaning, as declared in pedmesh.
+
 examples:
   pedmesh presets
   pedmesh presets paper
+  pedmesh presets --model eos
 """
 
 
@@ -29,6 +33,26 @@ def add_preset_arg(p: argparse.ArgumentParser) -> None:
 
 def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("name", nargs="?", default=None, help="show only this preset")
+    p.add_argument("--model", default=None, metavar="MODEL",
+                   help="list the parameters of this model instead (defaults, units, "
+                        "allowed values, meaning)")
+
+
+def _parameters(model: str) -> int:
+    """The declared parameters of ``model`` (pedmesh.parameters) as a table."""
+    from ..models import get_model
+
+    entry = get_model(model)
+    print(f"{entry.name} ({entry.scale}): {entry.description}")
+    width = max(len(p.name) for p in entry.parameters)
+    for p in entry.parameters:
+        default = "None" if p.default is None else (
+            p.default if isinstance(p.default, str) else f"{p.default:g}")
+        default = default if default != "" else "''"
+        print(f"  {p.name:<{width}}  {default:>11} {p.unit:<9} {p.bounds}")
+        for line in textwrap.wrap(p.description, 78 - width):
+            print(f"  {'':<{width}}    {line}")
+    return 0
 
 
 def _show(key: str, v, width: int) -> None:
@@ -46,6 +70,8 @@ def _show(key: str, v, width: int) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..presets import DEFAULT_PRESET, PRESETS, get_preset
 
+    if args.model is not None:
+        return _parameters(args.model)
     names = [get_preset(args.name).name] if args.name else list(PRESETS)
     for n, name in enumerate(names):
         pre = PRESETS[name]

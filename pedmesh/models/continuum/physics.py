@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from ...parameters import DEFAULTS as D
 
 __all__ = ["SFMRepulsion", "SFMFriction", "LongRange", "gamma1", "gamma2", "RadialTables"]

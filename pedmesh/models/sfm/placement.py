@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...parameters import DEFAULTS as D
+
 __all__ = ["seeded_positions"]
 
 
-def seeded_positions(room, seed: int, *, radius: float = 0.15, margin: float = 0.02) -> np.ndarray:
+def seeded_positions(room, seed: int, *, radius: float = D['r'],
+                     margin: float = 0.02) -> np.ndarray:
     """Start positions (N, 2) [m] of ``room``'s start areas, jittered with ``seed``.
 
     ``radius`` [m] is the body radius and ``margin`` [m] the extra gap kept between bodies
