@@ -55,11 +55,25 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="write the mesh to this .vtu file")
 
 
-def mesh_from_args(args: argparse.Namespace):
-    """Load the room named on the command line and triangulate it."""
+def mesh_from_args(args: argparse.Namespace, *, buildings: bool = False):
+    """Load the room named on the command line and triangulate it; a building (levels and
+    stairs) only where the command handles one (``buildings``), else a one-line error."""
+    from ..errors import PedmeshError
+    from ..geometry import Building
     from ..io import load_room
 
     room = load_room(args.geometry)
+    if isinstance(room, Building):
+        if not buildings:
+            raise PedmeshError(f"{args.geometry}: '{room.name}' is a building (levels and "
+                               f"stairs); `pedmesh {args.command}` takes a single-level room "
+                               "for now (`pedmesh mesh` meshes a building)")
+        from ..mesh.building import triangulate_building
+
+        if args.exit_size is not None:
+            raise PedmeshError("--exit-size is not available for buildings")
+        opts = {k: v for k, v in mesh_options(args).items() if k != "exit_size"}
+        return room, triangulate_building(room, **opts, max_cells=args.max_cells)
     return room, triangulate(room, **mesh_options(args), max_cells=args.max_cells)
 
 
@@ -69,11 +83,43 @@ def mesh_options(args: argparse.Namespace) -> dict:
             "feature_area": args.feature_area, "exit_size": args.exit_size}
 
 
-def run(args: argparse.Namespace) -> int:
+def _building_summary(args: argparse.Namespace, building, mesh) -> int:
+    """What `pedmesh mesh` prints and writes for a building's surface mesh."""
     from ..errors import PedmeshError
     from ..io import write_vtu
 
-    room, mesh = mesh_from_args(args)
+    print(f"building '{building.name}' ({args.geometry})")
+    print(f"  walkable area   {building.area:.3f} m^2 on the surface (mesh: {mesh.area:.3f} m^2)")
+    print(f"  vertices        {mesh.n_points}")
+    print(f"  triangles       {mesh.n_triangles}")
+    for p in mesh.pieces:
+        if p.kind == "level":
+            lv = building.level(p.name)
+            print(f"  level {p.name:<10} z = {lv.z:g} m, {p.mesh.n_triangles} triangles, "
+                  f"{len(lv.room.initial_positions())} pedestrians")
+    for s in building.stairs:
+        print(f"  stair {s.name:<10} {s.bottom.level} -> {s.top.level}, rise "
+              f"{building.rise(s):g} m, slope {building.slope(s):.1f} deg")
+    print(f"  exits           {', '.join(mesh.exit_names) or 'none'}")
+    if args.output:
+        out = Path(args.output)
+        if out.suffix.lower() != ".vtu":
+            raise PedmeshError(f"{out}: the mesh is written as VTU; use a .vtu suffix")
+        if out.parent and not out.parent.exists():
+            out.parent.mkdir(parents=True)
+        write_vtu(out, mesh, cell_data=mesh.cell_data())
+        print(f"wrote {out} (the building in 3-D: levels at their heights, stairs sloped)")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..mesh import TriMesh
+    from ..errors import PedmeshError
+    from ..io import write_vtu
+
+    room, mesh = mesh_from_args(args, buildings=True)
+    if not isinstance(mesh, TriMesh):
+        return _building_summary(args, room, mesh)
     s = mesh.summary()
     exits = ", ".join(f"{n} {L:.3f} m" for n, L in s["exits"].items()) or "none"
     n_ped = len(room.initial_positions())

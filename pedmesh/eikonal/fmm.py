@@ -102,7 +102,9 @@ class EikonalSolver:
         split = _fmm.find_split_vertices(pts, tri, mesh.triangle_neighbors, MAX_SPLIT_STEPS)
         self.n_obtuse = int(np.sum(split != -1))
         self.n_split_fallback = int(np.sum(split == -2))
-        self.pts = np.ascontiguousarray(pts)
+        # the kernel marches in 3-D; a room lies at z = 0 (x + 0 is exact: bit for bit the
+        # same as in 2-D)
+        self.pts = np.ascontiguousarray(np.column_stack([pts, np.zeros(len(pts))]))
         tsplit = np.where(split >= 0, split, -1)
         # per vertex v and triangle t around it: (t, A, B, split of A, split of B), A and B
         # the next corners counter-clockwise (the kernel's row layout, see _fmm)

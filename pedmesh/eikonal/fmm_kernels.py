@@ -133,8 +133,11 @@ def _sift_down_last(hv, hk, pos, size):
 
 # ---------------------------------------------------------------- local solver
 @nb.njit(cache=True, inline="always")
-def triangle_update(cx, cy, ax, ay, bx, by, ta, tb, f):
-    """Arrival time at C = (cx, cy) from a planar front through A (time ``ta``) and B (``tb``).
+def triangle_update(cx, cy, cz, ax, ay, az, bx, by, bz, ta, tb, f):
+    """Arrival time at C = (cx, cy, cz) from a planar front through A (time ``ta``) and B
+    (``tb``), all three in one plane (z = 0 for a room; a building's surface is planar in
+    each triangle, so its 3-D coordinates give the same update as the triangle's own 2-D
+    chart).
 
     With E the edge vectors (A - C, B - C) and Q = (E E^T)^-1, the front's gradient g has
     E g = (ta, tb) - T_C and ``|g| = f`` (the slowness [s/m]): a quadratic in T_C. Its larger
@@ -144,11 +147,13 @@ def triangle_update(cx, cy, ax, ay, bx, by, ta, tb, f):
     """
     eax = ax - cx
     eay = ay - cy
+    eaz = az - cz
     ebx = bx - cx
     eby = by - cy
-    gaa = eax * eax + eay * eay
-    gbb = ebx * ebx + eby * eby
-    gab = eax * ebx + eay * eby
+    ebz = bz - cz
+    gaa = eax * eax + eay * eay + eaz * eaz
+    gbb = ebx * ebx + eby * eby + ebz * ebz
+    gab = eax * ebx + eay * eby + eaz * ebz
     inv = 1.0 / (gaa * gbb - gab * gab)
     qaa = gbb * inv
     qab = -gab * inv
@@ -175,7 +180,8 @@ def march(
     T, fixed_vertices, fixed_values, pts, vt_ptr, vt_corner, ds_ptr, ds_corner,
     ray_ptr, ray_idx, ray_cost, f_tri,
 ):
-    """Fast marching from the fixed (exit) vertices; fills ``T`` in place.
+    """Fast marching from the fixed (exit) vertices; fills ``T`` in place. ``pts`` (n, 3)
+    [m]: a room's vertices with z = 0, or a building surface's in 3-D.
 
     ``vt_corner`` and ``ds_corner`` are the corner and split-target rows described in the
     module docstring, ``ray_cost[k]`` the cost of corner ray ``k`` and ``f_tri`` the
@@ -218,6 +224,7 @@ def march(
             _prefetch(vt_corner, p1 - 1)
         vx = pts[v, 0]
         vy = pts[v, 1]
+        vz = pts[v, 2]
         # the triangles (v, A, B) around v: update A, then B (each with the third corner o)
         for s in range(vt_ptr[v], vt_ptr[v + 1]):
             c = vt_corner[s, 1]
@@ -229,21 +236,25 @@ def march(
             f = f_tri[vt_corner[s, 0]]
             cx = pts[c, 0]
             cy = pts[c, 1]
+            cz = pts[c, 2]
             ox = pts[o, 0]
             oy = pts[o, 1]
+            oz = pts[o, 2]
             for r in range(2):
                 if r == 1:  # swap roles: B is the target, A the third corner
                     c, o, c_acc, o_acc = o, c, o_acc, c_acc
-                    cx, cy, ox, oy = ox, oy, cx, cy
+                    cx, cy, cz, ox, oy, oz = ox, oy, oz, cx, cy, cz
                 if c_acc:
                     continue
                 d = vt_corner[s, 3 + r]  # the vertex splitting the obtuse angle at C, or -1
                 if o_acc and d < 0:
-                    cand = triangle_update(cx, cy, vx, vy, ox, oy, tv, T[o], f)
+                    cand = triangle_update(cx, cy, cz, vx, vy, vz, ox, oy, oz, tv, T[o], f)
                 else:
-                    cand = tv + f * math.sqrt((vx - cx) ** 2 + (vy - cy) ** 2)  # edge update
+                    cand = tv + f * math.sqrt((vx - cx) ** 2 + (vy - cy) ** 2
+                                              + (vz - cz) ** 2)  # edge update
                     if d >= 0 and pos[d] == ACCEPTED:  # virtual triangle (C, v, D)
-                        cv = triangle_update(cx, cy, vx, vy, pts[d, 0], pts[d, 1], tv, T[d], f)
+                        cv = triangle_update(cx, cy, cz, vx, vy, vz, pts[d, 0], pts[d, 1],
+                                             pts[d, 2], tv, T[d], f)
                         if cv < cand:
                             cand = cv
                 if cand < T[c] and not fixed[c]:
@@ -264,12 +275,14 @@ def march(
                 continue
             cx = pts[c, 0]
             cy = pts[c, 1]
+            cz = pts[c, 2]
             f = f_tri[ds_corner[s, 0]]
             cand = np.inf
             for r in range(2, 4):
                 o = ds_corner[s, r]  # A, then B
                 if pos[o] == ACCEPTED:
-                    cv = triangle_update(cx, cy, vx, vy, pts[o, 0], pts[o, 1], tv, T[o], f)
+                    cv = triangle_update(cx, cy, cz, vx, vy, vz, pts[o, 0], pts[o, 1],
+                                         pts[o, 2], tv, T[o], f)
                     if cv < cand:
                         cand = cv
             if cand < T[c] and not fixed[c]:

@@ -1,5 +1,7 @@
-"""Rooms (walls, obstacles, exits, start areas) and their file formats."""
+"""Rooms (walls, obstacles, exits, start areas), buildings (levels joined by stairs) and
+their file formats."""
 
+from .building import Building, Level, Stair, StairEnd
 from .room import (
     EXIT_TOLERANCE,
     Exit,
@@ -11,6 +13,10 @@ from .room import (
 )
 
 __all__ = [
+    "Building",
+    "Level",
+    "Stair",
+    "StairEnd",
     "EXIT_TOLERANCE",
     "Exit",
     "MeasurementArea",

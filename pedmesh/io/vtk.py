@@ -31,7 +31,8 @@ def _pad3(a: np.ndarray) -> np.ndarray:
 
 def mesh_to_meshio(mesh, point_data: ArrayMap = None, cell_data: ArrayMap = None, *,
                    boundary: bool = False):
-    """A :class:`meshio.Mesh` of a :class:`~pedmesh.mesh.TriMesh`.
+    """A :class:`meshio.Mesh` of a :class:`~pedmesh.mesh.TriMesh` (z = 0) or of a
+    building's :class:`~pedmesh.mesh.surface.SurfaceMesh` (in 3-D; without ``boundary``).
 
     Parameters
     ----------
@@ -46,7 +47,8 @@ def mesh_to_meshio(mesh, point_data: ArrayMap = None, cell_data: ArrayMap = None
     """
     import meshio
 
-    pts = np.column_stack([mesh.points, np.zeros(mesh.n_points)])
+    pts = mesh.points if mesh.points.shape[1] == 3 else \
+        np.column_stack([mesh.points, np.zeros(mesh.n_points)])  # (a building is 3-D)
     cells = [("triangle", np.asarray(mesh.triangles))]
     cd = {k: [_pad3(v)] for k, v in (cell_data or {}).items()}
     for k, v in (cell_data or {}).items():

@@ -26,6 +26,11 @@ Schema (keys not listed are an error)::
       "measurement_areas": [{"name": "area", "polygon": [[x, y], ...]}]
     }
 
+A building (:mod:`pedmesh.geometry.building`) has ``"levels"`` (each a room's keys plus
+``"name"`` and ``"z"`` [m]) and ``"stairs"`` instead of the room keys; a file with
+``"levels"`` reads as a :class:`~pedmesh.geometry.Building`, one without as a
+:class:`~pedmesh.geometry.Room`, unchanged.
+
 Element names are optional (``exit-1``, ``obstacle-2``, ... are used when missing). Saving
 writes every float with ``repr`` precision, so ``load_room(save_room(room))`` is exact.
 """
@@ -37,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import GeometryError, RoomFileError
+from ..building import Building, Level, Stair
 from ..room import (
     Exit,
     MeasurementArea,
@@ -47,7 +53,8 @@ from ..room import (
 )
 from ._registry import RoomFormat, read_text, register_format
 
-__all__ = ["room_from_dict", "room_to_dict", "read_native", "write_native", "FORMAT_NAME"]
+__all__ = ["room_from_dict", "room_to_dict", "building_from_dict", "building_to_dict",
+           "read_native", "write_native", "FORMAT_NAME"]
 
 FORMAT_NAME = "pedmesh-room"
 FORMAT_VERSION = 1
@@ -68,16 +75,27 @@ _ELEMENTS: dict[str, tuple[type, str, str, tuple[str, ...]]] = {
 }
 
 
-def room_from_dict(data: Any, source: str = "room") -> Room:
-    """Build a :class:`Room` from a native-format dict, with strict key checks."""
+def room_from_dict(data: Any, source: str = "room") -> Room | Building:
+    """Build a :class:`Room` (or, with ``"levels"``, a :class:`Building`) from a
+    native-format dict, with strict key checks."""
     if not isinstance(data, dict):
         raise RoomFileError(f"{source}: the top level must be a JSON object, "
                             f"got {type(data).__name__}")
+    if "levels" in data:
+        return building_from_dict(data, source)
     unknown = sorted(set(data) - _TOP_KEYS)
     if unknown:
+        hint = " (a building's levels and stairs go in 'levels' and 'stairs')" \
+            if unknown[0] == "stairs" else ""
         raise RoomFileError(
             f"{source}: unknown key '{unknown[0]}' (allowed: {', '.join(sorted(_TOP_KEYS))})"
+            + hint
         )
+    _check_header(data, source)
+    return _room(data, source)
+
+
+def _check_header(data: dict, source: str) -> None:
     if "format" in data and data["format"] != FORMAT_NAME:
         raise RoomFileError(f"{source}: 'format' must be '{FORMAT_NAME}', got {data['format']!r}")
     if "version" in data and data["version"] != FORMAT_VERSION:
@@ -86,6 +104,10 @@ def room_from_dict(data: Any, source: str = "room") -> Room:
         )
     if data.get("units", "m") != "m":
         raise RoomFileError(f"{source}: 'units' must be 'm' (metres), got {data['units']!r}")
+
+
+def _room(data: dict, source: str) -> Room:
+    """The room of a dict whose keys were checked."""
     if "outline" not in data:
         raise RoomFileError(f"{source}: missing required key 'outline' (the room's wall polygon)")
     kwargs: dict[str, Any] = {"outline": data["outline"]}
@@ -117,6 +139,78 @@ def room_from_dict(data: Any, source: str = "room") -> Room:
             elements.append(cls(**args))
         kwargs[key] = elements
     return Room(**kwargs)
+
+
+_BUILDING_KEYS = {"format", "version", "name", "description", "units", "preset", "levels",
+                  "stairs"}
+_LEVEL_KEYS = (_TOP_KEYS - {"format", "version", "units", "preset", "description"}) | {"z"}
+_STAIR_KEYS = {"name", "polygon", "bottom", "top", "speed_up", "speed_down"}
+
+
+def building_from_dict(data: dict, source: str = "building") -> Building:
+    """Build a :class:`Building` from a native-format dict with ``"levels"``."""
+    unknown = sorted(set(data) - _BUILDING_KEYS)
+    if unknown:
+        raise RoomFileError(f"{source}: unknown key '{unknown[0]}' for a building (allowed: "
+                            f"{', '.join(sorted(_BUILDING_KEYS))}; a level's rooms go in "
+                            "'levels')")
+    _check_header(data, source)
+    levels_in, stairs_in = data["levels"], data.get("stairs", [])
+    for key, items in (("levels", levels_in), ("stairs", stairs_in)):
+        if not isinstance(items, list):
+            raise RoomFileError(f"{source}: '{key}' must be a list, got {type(items).__name__}")
+    levels = []
+    for i, item in enumerate(levels_in):
+        where = f"{source}: levels[{i}]"
+        if not isinstance(item, dict):
+            raise RoomFileError(f"{where}: each level must be a JSON object")
+        bad = sorted(set(item) - _LEVEL_KEYS)
+        if bad:
+            raise RoomFileError(f"{where}: unknown key '{bad[0]}' for a level (allowed: "
+                                f"{', '.join(sorted(_LEVEL_KEYS))})")
+        for key in ("name", "z"):
+            if key not in item:
+                raise RoomFileError(f"{where}: a level needs '{key}'")
+        name = item["name"]
+        room = _room({k: v for k, v in item.items() if k != "z"},
+                     f"{where} ('{name}')")
+        levels.append(Level(name, item["z"], room))
+    stairs = []
+    for i, item in enumerate(stairs_in):
+        where = f"{source}: stairs[{i}]"
+        if not isinstance(item, dict):
+            raise RoomFileError(f"{where}: each stair must be a JSON object")
+        bad = sorted(set(item) - _STAIR_KEYS)
+        if bad:
+            raise RoomFileError(f"{where}: unknown key '{bad[0]}' for a stair (allowed: "
+                                f"{', '.join(sorted(_STAIR_KEYS))})")
+        for key in ("polygon", "bottom", "top"):
+            if key not in item:
+                raise RoomFileError(f"{where}: a stair needs '{key}'")
+        stairs.append(Stair(**{"name": f"stair-{i + 1}", **item}))
+    kwargs = {k: data[k] for k in ("name", "description", "preset") if k in data}
+    return Building(levels=levels, stairs=stairs, **kwargs)
+
+
+def building_to_dict(b: Building) -> dict[str, Any]:
+    """The native-format dict of a building (inverse of :func:`building_from_dict`)."""
+    out: dict[str, Any] = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "name": b.name}
+    if b.description:
+        out["description"] = b.description
+    if b.preset is not None:
+        out["preset"] = b.preset
+    out["units"] = "m"
+    levels = []
+    for lv in b.levels:
+        d = {k: v for k, v in room_to_dict(lv.room).items()
+             if k not in ("format", "version", "units", "name", "description", "preset")}
+        levels.append({"name": lv.name, "z": lv.z, **d})
+    out["levels"] = levels
+    out["stairs"] = [{"name": s.name, "polygon": [list(p) for p in s.polygon],
+                      "bottom": {"level": s.bottom.level, "edge": [list(p) for p in s.bottom.edge]},
+                      "top": {"level": s.top.level, "edge": [list(p) for p in s.top.edge]},
+                      "speed_up": s.speed_up, "speed_down": s.speed_down} for s in b.stairs]
+    return out
 
 
 def room_to_dict(room: Room) -> dict[str, Any]:
@@ -167,7 +261,7 @@ def _dumps(data: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def read_native(path: str | Path) -> Room:
+def read_native(path: str | Path) -> Room | Building:
     """Read a native pedmesh room file."""
     text = read_text(path)
     try:
@@ -181,9 +275,10 @@ def read_native(path: str | Path) -> Room:
     return room_from_dict(data, str(path))
 
 
-def write_native(room: Room, path: str | Path) -> None:
-    """Write ``room`` in the native format."""
-    Path(path).write_text(_dumps(room_to_dict(room)), encoding="utf-8")
+def write_native(room: Room | Building, path: str | Path) -> None:
+    """Write ``room`` (or a building) in the native format."""
+    data = building_to_dict(room) if isinstance(room, Building) else room_to_dict(room)
+    Path(path).write_text(_dumps(data), encoding="utf-8")
 
 
 register_format(RoomFormat("pedmesh-json", (".json",), read_native, write_native))

@@ -1,0 +1,135 @@
+"""Fast marching on a building's surface (:class:`~pedmesh.mesh.surface.SurfaceMesh`).
+
+The same compiled march as on a room (:mod:`pedmesh.eikonal.fmm_kernels`), on the surface's
+3-D vertices: every triangle is planar, so its update in 3-D is the update in its own
+chart, and a distance along a stair is measured on the slope. What needs the plane is done
+piece by piece in each piece's chart: the obtuse-angle splits (their walk stops at a stair
+edge, where the plain update takes over) and the straight rays from exit end points and
+reflex corners (visible within the piece).
+
+``cost`` [s/m] is per vertex or per triangle as on a room; :func:`stair_costs` gives the
+cost of walking at the level speed and at the stairs' speeds up or down.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..mesh.surface import SurfaceMesh
+from ..mesh.triangle_mesh import BoundaryKind
+from . import fmm_kernels as _fmm
+from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
+                  _int32_rows, _ray_samples)
+
+__all__ = ["SurfaceEikonalSolver", "stair_costs"]
+
+
+class SurfaceEikonalSolver(EikonalSolver):
+    """:class:`~pedmesh.eikonal.EikonalSolver` on a building's surface mesh (see the
+    module docstring); ``solve`` is the room solver's."""
+
+    def __init__(self, surface: SurfaceMesh, exits: Sequence[str | int] | None = None,
+                 corner_radius: float = DEFAULT_CORNER_RADIUS) -> None:
+        if not isinstance(surface, SurfaceMesh):
+            raise ParameterError("SurfaceEikonalSolver takes a building's SurfaceMesh")
+        super().__init__(surface, exits, corner_radius)
+
+    def _setup(self) -> None:
+        s = self.mesh
+        tri = s.triangles
+        n = s.n_points
+        exit_of = np.full(n, -1, np.int64)
+        sel = s.segment_kind == BoundaryKind.EXIT
+        exit_of[s.segments[sel, 0]] = s.segment_owner[sel]
+        exit_of[s.segments[sel, 1]] = s.segment_owner[sel]
+        fixed = np.isin(exit_of, self.exits)
+        self.fixed_vertices = np.flatnonzero(fixed).astype(np.int32)
+        self._fixed_exit = exit_of[fixed]
+        # obtuse splits, piece by piece in each chart
+        split = np.full((s.n_triangles, 3), -1, np.int64)
+        for p in s.pieces:
+            m = p.mesh
+            loc = _fmm.find_split_vertices(m.points, m.triangles, m.triangle_neighbors,
+                                           MAX_SPLIT_STEPS)
+            split[p.triangles] = np.where(loc >= 0, p.vertices[np.maximum(loc, 0)], loc)
+        self.n_obtuse = int(np.sum(split != -1))
+        self.n_split_fallback = int(np.sum(split == -2))
+        self.pts = np.ascontiguousarray(s.points)
+        tsplit = np.where(split >= 0, split, -1)
+        flat = tri.ravel()
+        order = np.argsort(flat, kind="stable")
+        idx = (order // 3).astype(np.int64)
+        ptr = np.zeros(n + 1, np.int64)
+        np.cumsum(np.bincount(flat, minlength=n), out=ptr[1:])
+        loc = np.argmax(tri[idx] == np.repeat(np.arange(n), np.diff(ptr))[:, None], axis=1)
+        ia, ib = (loc + 1) % 3, (loc + 2) % 3
+        self.vt_ptr = ptr
+        self.vt_corner = _int32_rows(idx, tri[idx, ia], tri[idx, ib], tsplit[idx, ia],
+                                     tsplit[idx, ib])
+        t_s, i_s = np.nonzero(split >= 0)
+        self.ds_ptr, order = _csr(split[t_s, i_s], n)
+        t_s, i_s = t_s[order], i_s[order]
+        self.ds_corner = _int32_rows(t_s, tri[t_s, i_s], tri[t_s, (i_s + 1) % 3],
+                                     tri[t_s, (i_s + 2) % 3])
+        self._rays(s)
+
+    def _rays(self, s: SurfaceMesh) -> None:
+        """The corner rays of every piece, in surface numbering (CSR by source vertex)."""
+        src, dst, length, samp_n, samp_tri = [], [], [], [], []
+        for p in s.pieces:
+            ptr, idx, ln = _corner_rays(p.mesh, self.corner_radius)
+            if len(idx) == 0:
+                continue
+            sptr, stri = _ray_samples(p.mesh, ptr, idx, ln)
+            src.append(p.vertices[np.repeat(np.arange(p.mesh.n_points), np.diff(ptr))])
+            dst.append(p.vertices[idx])
+            length.append(ln)
+            samp_n.append(np.diff(sptr))
+            samp_tri.append(np.split(p.triangles[stri], sptr[1:-1]))
+        n = s.n_points
+        if not src:
+            self.ray_ptr = np.zeros(n + 1, np.int64)
+            self.ray_idx = np.zeros(0, np.int32)
+            self.ray_len = np.zeros(0)
+            self.ray_samp_ptr, self.ray_samp_tri = np.zeros(1, np.int64), np.zeros(0, np.int64)
+            return
+        src = np.concatenate(src)
+        self.ray_ptr, order = _csr(src, n)
+        self.ray_idx = np.ascontiguousarray(np.concatenate(dst)[order], dtype=np.int32)
+        self.ray_len = np.ascontiguousarray(np.concatenate(length)[order])
+        samples = [x for part in samp_tri for x in part]
+        samples = [samples[k] for k in order]
+        counts = np.array([len(x) for x in samples], np.int64)
+        self.ray_samp_ptr = np.zeros(len(samples) + 1, np.int64)
+        np.cumsum(counts, out=self.ray_samp_ptr[1:])
+        self.ray_samp_tri = np.concatenate(samples).astype(np.int64)
+
+
+def stair_costs(surface: SurfaceMesh, phi: np.ndarray | None = None, *,
+                level_cost: float | np.ndarray = 1.0) -> np.ndarray:
+    """The cost [s/m] per triangle of walking on the surface: ``level_cost`` on the levels
+    (a scalar or one value per triangle) and on a stair ``level_cost / speed_up`` going up,
+    ``/ speed_down`` going down. Which way a stair is walked is read from the gradient of
+    ``phi`` (a potential, e.g. the distance to the exits, decreasing towards them) along
+    the stair's slope; without ``phi`` everyone goes down (the exits below)."""
+    b = surface.building
+    base = np.broadcast_to(np.asarray(level_cost, float), (surface.n_triangles,)).copy()
+    for k, p in enumerate(surface.pieces):
+        if p.kind != "stair":
+            continue
+        st = next(x for x in b.stairs if x.name == p.name)
+        tris = p.triangles
+        if phi is None or b.rise(st) == 0:
+            down = np.ones(len(tris), bool)
+        else:
+            pts = surface.points[surface.triangles[tris]]  # (k, 3, 3)
+            dz = pts[:, :, 2] - pts[:, :, 2].mean(axis=1)[:, None]
+            dphi = phi[surface.triangles[tris]] - phi[surface.triangles[tris]].mean(axis=1)[
+                :, None]
+            # phi falls towards the exits: walking down the stair where phi grows with z
+            down = np.sum(dz * dphi, axis=1) >= 0.0
+        base[tris] = np.where(down, base[tris] / st.speed_down, base[tris] / st.speed_up)
+    return base

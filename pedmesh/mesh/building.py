@@ -1,0 +1,224 @@
+"""Triangulate a building into one surface: every level and stair meshed in its own chart
+(:mod:`pedmesh.mesh.triangulate`), lifted to 3-D and stitched along the stair edges.
+
+A stair edge is meshed on both sides with the same vertices: each hinge is first split
+into pieces of about the feature size, handed to both pieces as a polyline (an exit of the
+mesher, so the grading treats it as an opening), and where Triangle splits a hinge segment
+further on one side, the points are added to both and the two pieces meshed again.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import MeshError
+from .surface import Piece, SurfaceMesh
+from .triangle_mesh import BoundaryKind, TriMesh
+from .triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
+
+__all__ = ["triangulate_building", "HINGE_PREFIX"]
+
+#: the name prefix of the mesher's exits that are stair edges (never a real exit's name)
+HINGE_PREFIX = "\u2195hinge:"
+#: rounds of re-meshing until both sides of every stair edge share their vertices
+MAX_STITCH_ROUNDS = 4
+
+
+def _edge_len(area: float) -> float:
+    """The edge length [m] of an equilateral triangle of ``area`` [m^2]."""
+    return math.sqrt(4.0 * area / math.sqrt(3.0))
+
+
+class _StairChart:
+    """The chart of a stair: its plane unrolled about its bottom edge (plan -> chart
+    stretches distances along the run direction by L/run, the slope's length over the
+    plan's)."""
+
+    def __init__(self, building, stair) -> None:
+        self.d, self.run = stair.run_direction()
+        self.o = np.asarray(stair.bottom.edge[0], float)
+        self.rise = building.rise(stair)
+        self.k = math.hypot(self.run, self.rise) / self.run
+        self.z0 = building.level(stair.bottom.level).z
+
+    def to_chart(self, xy: np.ndarray) -> np.ndarray:
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        along = (xy - self.o) @ self.d
+        return xy + ((self.k - 1.0) * along)[:, None] * self.d
+
+    def to_3d(self, uv: np.ndarray) -> np.ndarray:
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        along = (uv - self.o) @ self.d / self.k  # plan distance from the bottom edge
+        xy = uv - ((self.k - 1.0) * along)[:, None] * self.d
+        return np.column_stack([xy, self.z0 + self.rise * along / self.run])
+
+    def frame(self) -> tuple[np.ndarray, np.ndarray]:
+        """origin (3,) and axes (2, 3) of the chart in 3-D."""
+        p = self.to_3d(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
+        return p[0], np.array([p[1] - p[0], p[2] - p[0]])
+
+
+def _hinges(building) -> list[dict]:
+    """Every stair edge: the stair, which end, the level, and its plan segment."""
+    out = []
+    for s in building.stairs:
+        for end in ("bottom", "top"):
+            e = getattr(s, end)
+            out.append({"stair": s, "end": end, "level": e.level,
+                        "a": np.asarray(e.edge[0], float), "b": np.asarray(e.edge[1], float),
+                        "name": f"{HINGE_PREFIX}{s.name}:{end}"})
+    return out
+
+
+def _params_on(mesh: TriMesh, name: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The parameters s in [0, 1] along a -> b of the vertices on hinge exit ``name``."""
+    k = mesh.exit_names.index(name)
+    sel = (mesh.segment_kind == BoundaryKind.EXIT) & (mesh.segment_owner == k)
+    v = np.unique(mesh.segments[sel])
+    ab = b - a
+    return np.sort((mesh.points[v] - a) @ ab / (ab @ ab))
+
+
+def triangulate_building(building, max_area: float = MAX_AREA, min_angle: float = MIN_ANGLE,
+                         *, feature_area: float | None = FEATURE_AREA,
+                         max_cells: float | None = None) -> SurfaceMesh:
+    """One surface mesh of ``building`` (a :class:`~pedmesh.geometry.Building`): every
+    level and stair triangulated as :func:`~pedmesh.mesh.triangulate` does a room, with
+    the same options, then lifted to 3-D and stitched along the stair edges."""
+    hinges = _hinges(building)
+    h = _edge_len(min(max_area, feature_area or max_area))
+    for hg in hinges:  # the first split: pieces of about the feature size
+        n = max(1, math.ceil(np.linalg.norm(hg["b"] - hg["a"]) / h))
+        hg["s"] = np.linspace(0.0, 1.0, n + 1)
+    charts = {s.name: _StairChart(building, s) for s in building.stairs}
+    opts = dict(max_area=max_area, min_angle=min_angle, feature_area=feature_area,
+                max_cells=max_cells)
+    for _ in range(MAX_STITCH_ROUNDS):
+        levels = [_mesh_level(lv, hinges, opts) for lv in building.levels]
+        stairs = [_mesh_stair(s, charts[s.name], hinges, opts) for s in building.stairs]
+        if not _refine_hinges(building, hinges, levels, stairs, charts):
+            break
+    else:
+        raise MeshError(f"building '{building.name}': the two sides of a stair edge could "
+                        f"not be meshed alike in {MAX_STITCH_ROUNDS} rounds")
+    return _stitch(building, hinges, levels, stairs, charts)
+
+
+def _mesh_level(lv, hinges, opts) -> TriMesh:
+    from ..geometry import Exit
+
+    mine = [hg for hg in hinges if hg["level"] == lv.name]
+    extra = [Exit(hg["name"], [tuple(hg["a"] + s * (hg["b"] - hg["a"])) for s in hg["s"]])
+             for hg in mine]
+    room = lv.room.with_changes(exits=tuple(lv.room.exits) + tuple(extra))
+    return triangulate(room, **opts)
+
+
+def _mesh_stair(s, chart: _StairChart, hinges, opts) -> TriMesh:
+    from ..geometry import Exit, Room
+
+    ends = [hg for hg in hinges if hg["stair"] is s]
+    exits = []
+    for hg in ends:
+        line = np.array([hg["a"] + t * (hg["b"] - hg["a"]) for t in hg["s"]])
+        exits.append(Exit(hg["name"], [tuple(p) for p in chart.to_chart(line)]))
+    room = Room(outline=[tuple(p) for p in chart.to_chart(np.asarray(s.polygon))],
+                exits=exits, name=s.name)
+    return triangulate(room, **opts)
+
+
+def _refine_hinges(building, hinges, levels, stairs, charts) -> bool:
+    """Add to each hinge's split the points Triangle put on either side; True if any hinge
+    changed (the pieces are meshed again)."""
+    changed = False
+    lv_index = {lv.name: k for k, lv in enumerate(building.levels)}
+    st_index = {s.name: k for k, s in enumerate(building.stairs)}
+    for hg in hinges:
+        ch = charts[hg["stair"].name]
+        a_c, b_c = ch.to_chart(np.array([hg["a"], hg["b"]]))
+        s1 = _params_on(levels[lv_index[hg["level"]]], hg["name"], hg["a"], hg["b"])
+        s2 = _params_on(stairs[st_index[hg["stair"].name]], hg["name"], a_c, b_c)
+        union = np.unique(np.round(np.concatenate([hg["s"], s1, s2]), 12))
+        if len(union) != len(hg["s"]) or len(s1) != len(union) or len(s2) != len(union):
+            changed = changed or len(union) != len(hg["s"]) or len(s1) != len(s2)
+            hg["s"] = union
+    return changed
+
+
+def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
+    """Lift every piece to 3-D, merge the vertices of each stair edge, gather the tags."""
+    points, tris, piece_of, pieces = [], [], [], []
+    seg, kind, owner = [], [], []
+    exit_names = list(building.exit_names)
+    obstacle_names: list[str] = []
+    offset = 0
+    parts = [(lv.name, "level", m, None) for lv, m in zip(building.levels, levels)]
+    parts += [(s.name, "stair", m, charts[s.name]) for s, m in zip(building.stairs, stairs)]
+    z_of = {lv.name: lv.z for lv in building.levels}
+    for k, (name, kind_, m, chart) in enumerate(parts):
+        if chart is None:
+            p3 = np.column_stack([m.points, np.full(m.n_points, z_of[name])])
+            origin = np.array([0.0, 0.0, z_of[name]])
+            axes = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+        else:
+            p3 = chart.to_3d(m.points)
+            origin, axes = chart.frame()
+        points.append(p3)
+        tris.append(m.triangles + offset)
+        piece_of.append(np.full(m.n_triangles, k))
+        for j in range(len(m.segments)):
+            sk, so = int(m.segment_kind[j]), int(m.segment_owner[j])
+            if sk == BoundaryKind.EXIT:
+                ename = m.exit_names[so]
+                if ename.startswith(HINGE_PREFIX):
+                    continue  # a stair edge: interior once stitched
+                so = exit_names.index(ename)
+            elif sk == BoundaryKind.OBSTACLE:
+                obstacle_names.append(f"{name}/{m.obstacle_names[so]}")
+                so = len(obstacle_names) - 1
+            seg.append(m.segments[j] + offset)
+            kind.append(sk)
+            owner.append(so)
+        pieces.append((name, kind_, m, offset, origin, axes))
+        offset += m.n_points
+    pts = np.concatenate(points)
+    # merge each stair edge's vertices: the stair's copies become the level's
+    remap = np.arange(len(pts))
+    for hg in hinges:
+        lv_k = [p[0] for p in pieces].index(hg["level"])
+        st_k = [p[0] for p in pieces].index(hg["stair"].name)
+        va = _hinge_vertices(pieces[lv_k], hg["name"], pts)
+        vb = _hinge_vertices(pieces[st_k], hg["name"], pts)
+        if len(va) != len(vb) or not np.allclose(pts[va], pts[vb], atol=1e-6):
+            raise MeshError(f"stair '{hg['stair'].name}': its {hg['end']} edge was meshed "
+                            "differently on its two sides")
+        remap[vb] = va
+    keep = np.unique(remap)
+    new_index = np.full(len(pts), -1, np.int64)
+    new_index[keep] = np.arange(len(keep))
+    final = new_index[remap]
+    tri = final[np.concatenate(tris)]
+    out_pieces = []
+    for k, (name, kind_, m, off, origin, axes) in enumerate(pieces):
+        verts = final[off + np.arange(m.n_points)]
+        tri_k = np.flatnonzero(np.concatenate(piece_of) == k)
+        out_pieces.append(Piece(name, kind_, m, verts, tri_k, origin, axes))
+    return SurfaceMesh(points=pts[keep], triangles=tri, piece=np.concatenate(piece_of),
+                       pieces=tuple(out_pieces), segments=final[np.array(seg).reshape(-1, 2)],
+                       segment_kind=np.array(kind, np.int8), segment_owner=np.array(owner),
+                       exit_names=tuple(exit_names), obstacle_names=tuple(obstacle_names),
+                       building=building)
+
+
+def _hinge_vertices(piece, name: str, pts: np.ndarray) -> np.ndarray:
+    """The (global, pre-merge) vertices of a piece on hinge ``name``, in order along it."""
+    _, _, m, off, _, _ = piece
+    k = m.exit_names.index(name)
+    sel = (m.segment_kind == BoundaryKind.EXIT) & (m.segment_owner == k)
+    v = np.unique(m.segments[sel]) + off
+    # order along the hinge (its end points are the extreme ones in 3-D)
+    d = pts[v] - pts[v].mean(axis=0)
+    u, _, _ = np.linalg.svd(d.T @ d)
+    return v[np.argsort(d @ u[:, 0])]

@@ -1,0 +1,114 @@
+"""Fast marching on a building's surface: distances measured on the slope of a stair,
+first-order convergence to the exact geodesic distance on a folded surface."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from shapely.geometry import LineString, Point
+
+from pedmesh.eikonal.surface import SurfaceEikonalSolver, stair_costs
+from pedmesh.geometry import Building, Exit, Level, Room, Stair
+from pedmesh.mesh.building import triangulate_building
+
+
+def strip(rise: float, door: tuple[float, float] = (1.5, 2.5), run: float = 4.0) -> Building:
+    """A 4 m wide strip: level 'a' on x in [0, 10] at z = 0 with a door at x = 0, a stair on
+    x in [10, 10 + run] and level 'b' beyond it, ``rise`` m up, 10 m long."""
+    x1, x2 = 10.0, 10.0 + run
+    a = Room(outline=[(0, 0), (x1, 0), (x1, 4), (0, 4)], name="a",
+             exits=[Exit("door", [(0, door[1]), (0, door[0])])])
+    b = Room(outline=[(x2, 0), (x2 + 10, 0), (x2 + 10, 4), (x2, 4)], name="b")
+    st = Stair("ramp", [(x1, 0), (x2, 0), (x2, 4), (x1, 4)],
+               {"level": "a", "edge": [(x1, 0), (x1, 4)]},
+               {"level": "b", "edge": [(x2, 0), (x2, 4)]})
+    return Building([Level("a", 0.0, a), Level("b", rise, b)], [st], name="strip")
+
+
+def unfolded(p: np.ndarray, rise: float, run: float = 4.0) -> np.ndarray:
+    """The strip unrolled into the plane: x along the surface."""
+    L = math.hypot(run, rise)
+    x = p[:, 0]
+    u = np.where(x <= 10, x, np.where(x <= 10 + run, 10 + (x - 10) * L / run,
+                                      10 + L + (x - 10 - run)))
+    return np.column_stack([u, p[:, 1]])
+
+
+def test_a_stair_is_walked_on_its_slope():
+    """A 4 m run with a 3 m rise is 5 m on the surface (and 4 m rise: 5.66 m at 45 deg)."""
+    for rise, slope_len in ((3.0, 5.0), (4.0, math.hypot(4, 4)), (0.0, 4.0)):
+        m = triangulate_building(strip(rise, door=(0.0, 4.0)), max_area=0.5, feature_area=None)
+        phi = SurfaceEikonalSolver(m).solve(1.0)
+        top = np.isclose(m.points[:, 0], 14.0)
+        foot = np.isclose(m.points[:, 0], 10.0)
+        assert np.allclose(phi[top], 10.0 + slope_len, atol=1e-9)
+        assert np.allclose(phi[foot], 10.0, atol=1e-9)
+        # at the stair speed up: the extra slope length costs 1/speed_up s per m
+        cost = stair_costs(m, None, level_cost=1.0)
+        st = m.building.stairs[0]
+        t = SurfaceEikonalSolver(m).solve(cost)
+        assert np.allclose(t[top], 10.0 + slope_len / st.speed_down, atol=1e-9)
+
+
+def test_stairs_are_walked_up_where_the_exit_is_above():
+    m = triangulate_building(strip(3.0, door=(0.0, 4.0)), max_area=0.5, feature_area=None)
+    # exit on the lower level: from level b people walk down
+    phi = SurfaceEikonalSolver(m).solve(1.0)
+    c = stair_costs(m, phi)
+    st = m.building.stairs[0]
+    ramp = m.pieces[m.piece_index("ramp")].triangles
+    assert np.allclose(c[ramp], 1.0 / st.speed_down)
+    # the same potential with its sign turned: the exit above, walking up
+    c = stair_costs(m, -phi)
+    assert np.allclose(c[ramp], 1.0 / st.speed_up)
+
+
+def _l1_error(area: float, rise: float = 3.0) -> tuple[float, float]:
+    b = strip(rise)
+    m = triangulate_building(b, max_area=area, feature_area=None)
+    phi = SurfaceEikonalSolver(m).solve(1.0)
+    door = LineString([(0, 1.5), (0, 2.5)])
+    exact = np.array([door.distance(Point(q)) for q in unfolded(m.points, rise)])
+    w = np.zeros(m.n_points)
+    np.add.at(w, m.triangles.ravel(), np.repeat(m.areas / 3, 3))
+    return float(np.sum(w * np.abs(phi - exact)) / np.sum(w)), math.sqrt(area)
+
+
+def test_first_order_convergence_on_a_folded_surface():
+    """Level, ramp, level (a developable surface): the exact geodesic distance is the
+    distance in the unrolled plane. The surface solver converges at first order, with the
+    room solver's accuracy: its error is that of the same strip built flat (rise 0) to
+    within 15 % on every mesh."""
+    areas = (1.0, 0.25, 0.0625)
+    errs, hs = zip(*[_l1_error(a) for a in areas])
+    flat = [_l1_error(a, rise=0.0)[0] for a in areas]
+    order = np.polyfit(np.log(hs), np.log(errs), 1)[0]
+    print(f"\nfolded surface: L1 errors {errs} at h {hs}, order {order:.2f}; flat {flat}")
+    assert errs[0] > errs[1] > errs[2]
+    assert order > 0.9
+    assert all(e < 1.15 * f for e, f in zip(errs, flat))
+
+
+def test_the_surface_solver_matches_the_room_solver_on_one_level():
+    """A building of one level is the room: the same vertices, the same potential."""
+    from pedmesh.eikonal import solve_eikonal
+    from pedmesh.mesh import triangulate
+
+    room = Room(outline=[(0, 0), (12, 0), (12, 6), (4, 6), (4, 9), (0, 9)], name="l",
+                exits=[Exit("door", [(0, 8), (0, 9)])])
+    m = triangulate_building(Building([Level("l", 0.0, room)]), max_area=0.5)
+    flat = triangulate(room, max_area=0.5)
+    assert np.array_equal(m.points[:, :2], flat.points)
+    assert np.array_equal(SurfaceEikonalSolver(m).solve(1.0), solve_eikonal(flat, 1.0))
+
+
+@pytest.mark.parametrize("rise", [0.0, 3.0])
+def test_hinge_vertices_are_shared(rise):
+    m = triangulate_building(strip(rise), max_area=0.3)
+    counts = m.edge_triangle_counts
+    assert counts.max() == 2
+    # only walls and the door are boundary: the stair edges are interior
+    assert np.sum(counts == 1) == len(m.segments)
+    assert math.isclose(m.area, 40 + 40 + 4 * math.hypot(4, rise), rel_tol=1e-12)

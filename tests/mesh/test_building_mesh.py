@@ -1,0 +1,60 @@
+"""A building's surface mesh: levels at their heights, stairs sloped, stitched along the
+stair edges, written to VTK as one 3-D dataset."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+import pedmesh
+from pedmesh.cli import main
+from pedmesh.mesh.building import triangulate_building
+
+from building_data import TWO  # (tests/building_data.py)
+
+def test_the_surface_is_stitched_and_true_in_3d(tmp_path):
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps(TWO))
+    b = pedmesh.load_room(p)
+    m = triangulate_building(b, max_area=1.0)
+    assert math.isclose(m.area, b.area, rel_tol=1e-12)  # 394 m^2 on the surface
+    assert m.edge_triangle_counts.max() == 2
+    assert np.sum(m.edge_triangle_counts == 1) == len(m.segments)  # the hinges are interior
+    ground, first = m.piece_index("ground"), m.piece_index("first")
+    z = m.points[:, 2]
+    assert set(np.unique(z[m.triangles[m.piece == ground]])) == {0.0}
+    assert set(np.unique(z[m.triangles[m.piece == first]])) == {3.0}
+    stair = m.pieces[m.piece_index("stair")]
+    # the stair's chart is isometric: areas and edge lengths as in 3-D
+    assert math.isclose(stair.mesh.areas.sum(), m.areas[stair.triangles].sum(), rel_tol=1e-12)
+    uv = stair.to_chart(m.points[stair.vertices])
+    assert np.allclose(uv, stair.mesh.points, atol=1e-9)
+    assert np.allclose(stair.to_3d(stair.mesh.points), m.points[stair.vertices], atol=1e-9)
+    # every triangle of the stair is inclined at the stair's slope
+    n = m.normals[stair.triangles]
+    assert np.allclose(np.degrees(np.arccos(n[:, 2])), b.slope(b.stairs[0]))
+
+
+def test_pedmesh_mesh_writes_the_building_in_3d(tmp_path, capsys):
+    import pyvista as pv
+
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps(TWO))
+    out = tmp_path / "b.vtu"
+    assert main(["mesh", str(p), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "building 'two-storey'" in text and "slope 36.9 deg" in text
+    g = pv.read(out)
+    assert g.bounds[4] == 0.0 and g.bounds[5] == 3.0
+    assert set(g.cell_data) >= {"piece", "stair", "area"}
+    assert math.isclose(float(np.sum(g.cell_data["area"])), 394.0, rel_tol=1e-12)
+
+
+def test_commands_that_cannot_run_a_building_say_so(tmp_path, capsys):
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps(TWO))
+    assert main(["run", str(p), "--out", str(tmp_path / "r"), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is a building (levels and stairs)" in err[0]
