@@ -24,7 +24,7 @@ from . import fmm_kernels as _fmm
 from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
                   _int32_rows, _ray_samples)
 
-__all__ = ["SurfaceEikonalSolver", "stair_costs"]
+__all__ = ["SurfaceEikonalSolver", "stair_costs", "surface_gradient"]
 
 
 class SurfaceEikonalSolver(EikonalSolver):
@@ -133,3 +133,20 @@ def stair_costs(surface: SurfaceMesh, phi: np.ndarray | None = None, *,
             down = np.sum(dz * dphi, axis=1) >= 0.0
         base[tris] = np.where(down, base[tris] / st.speed_down, base[tris] / st.speed_up)
     return base
+
+
+def surface_gradient(surface: SurfaceMesh, phi: np.ndarray) -> np.ndarray:
+    """The gradient (m, 3) of the piecewise-linear ``phi`` in each triangle's plane (tangent
+    to the surface): ``-gradient / |gradient|`` is the walking direction."""
+    p = surface.points[surface.triangles]  # (m, 3, 3)
+    f = np.asarray(phi, float)[surface.triangles]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    d1, d2 = f[:, 1] - f[:, 0], f[:, 2] - f[:, 0]
+    # g = a e1 + b e2 with g.e1 = d1, g.e2 = d2 (the Gram system of the triangle)
+    g11 = np.sum(e1 * e1, axis=1)
+    g12 = np.sum(e1 * e2, axis=1)
+    g22 = np.sum(e2 * e2, axis=1)
+    det = g11 * g22 - g12 * g12
+    a = (d1 * g22 - d2 * g12) / det
+    b = (d2 * g11 - d1 * g12) / det
+    return a[:, None] * e1 + b[:, None] * e2

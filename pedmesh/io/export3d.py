@@ -37,7 +37,8 @@ FORMATS = (".glb", ".gltf", ".obj", ".ply", ".stl")
 #: z-up (pedmesh) to y-up (glTF, OBJ): (x, y, z) -> (x, z, -y)
 Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
 Y_UP_SUFFIXES = (".glb", ".gltf", ".obj")
-_COLOURS = {"floor": (225, 225, 220, 255), "walls": (150, 150, 150, 255),
+_COLOURS = {"stairs": (205, 160, 90, 255),
+            "floor": (225, 225, 220, 255), "walls": (150, 150, 150, 255),
             "obstacles": (95, 95, 100, 255), "exits": (40, 170, 60, 255),
             "crowd": (40, 90, 200, 255)}
 
@@ -61,9 +62,11 @@ def _extrude(shape, height: float):
 
 def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
                wall_height: float = 2.5, wall_thickness: float = 0.2,
-               body_radius: float = 0.2, body_height: float = 1.75):
+               body_radius: float = 0.2, body_height: float = 1.75, openings=()):
     """The room (and crowd at ``positions`` (n, 2) [m]) as a ``trimesh.Scene`` (see the
-    module docstring); ``mesh``: the room's TriMesh for the floor (default: a new one)."""
+    module docstring); ``mesh``: the room's TriMesh for the floor (default: a new one);
+    ``openings``: more wall segments ((x, y), (x, y)) left open besides the exits (a
+    building's stair edges)."""
     import shapely
     import trimesh
 
@@ -79,7 +82,8 @@ def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
     outline = shapely.Polygon(room.outline)
     band = outline.buffer(wall_thickness, join_style="mitre").difference(outline)
     exit_lines = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
-    doors = [ln.buffer(1.5 * wall_thickness, cap_style="flat") for ln in exit_lines]
+    doors = [ln.buffer(1.5 * wall_thickness, cap_style="flat")
+             for ln in exit_lines + [shapely.LineString(o) for o in openings]]
     if doors:
         band = band.difference(shapely.union_all(doors))
     walls = _extrude(band, wall_height)
@@ -110,9 +114,39 @@ def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
     return scene
 
 
+def building_scene(building, *, surface=None, wall_height: float = 2.5, **kw: Any):
+    """A building as a ``trimesh.Scene``: every level as :func:`room_scene` draws a room,
+    lifted to its height, with its walls open at the stair edges, and every stair as its
+    sloped surface (``surface``: the building's
+    :class:`~pedmesh.mesh.surface.SurfaceMesh`, default: a new one)."""
+    import trimesh
+
+    from ..mesh.building import triangulate_building
+
+    if surface is None:
+        surface = triangulate_building(building, max_area=max(building.area / 4000.0, 0.5))
+    scene = trimesh.Scene()
+    for lv in building.levels:
+        openings = [getattr(s, end).edge for s in building.stairs for end in ("bottom", "top")
+                    if getattr(s, end).level == lv.name]
+        piece = surface.pieces[surface.piece_index(lv.name)]
+        sub = room_scene(lv.room, mesh=piece.mesh, wall_height=wall_height,
+                         openings=openings, **kw)
+        lift = trimesh.transformations.translation_matrix((0.0, 0.0, lv.z))
+        for name, geom in sub.geometry.items():
+            scene.add_geometry(geom, geom_name=f"{lv.name}/{name}", transform=lift)
+    for s in building.stairs:
+        piece = surface.pieces[surface.piece_index(s.name)]
+        stair = trimesh.Trimesh(surface.points[piece.vertices], piece.mesh.triangles,
+                                process=False)
+        scene.add_geometry(_coloured(stair, "stairs"), geom_name=f"{s.name}/stairs")
+    return scene
+
+
 def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
-    """Write :func:`room_scene` (keyword arguments passed on) to ``path``; the suffix picks
-    the format (:data:`FORMATS`). Returns the path."""
+    """Write :func:`room_scene` (or :func:`building_scene` for a building; keyword
+    arguments passed on) to ``path``; the suffix picks the format (:data:`FORMATS`).
+    Returns the path."""
     import trimesh
 
     p = Path(path)
@@ -120,7 +154,15 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
     if suffix not in FORMATS:
         raise PedmeshError(f"{path}: unsupported 3-D format '{suffix or '(none)'}' "
                            f"(use {', '.join(FORMATS)})")
-    scene = room_scene(room, **kw)
+    from ..geometry import Building
+
+    if isinstance(room, Building):
+        if kw.get("positions") is not None:
+            raise PedmeshError("a building's crowd cannot be drawn yet (--run takes a room)")
+        kw.pop("positions", None)
+        scene = building_scene(room, **kw)
+    else:
+        scene = room_scene(room, **kw)
     if suffix in Y_UP_SUFFIXES:
         scene.apply_transform(Z_UP_TO_Y_UP)
     p.parent.mkdir(parents=True, exist_ok=True)

@@ -112,3 +112,16 @@ def test_hinge_vertices_are_shared(rise):
     # only walls and the door are boundary: the stair edges are interior
     assert np.sum(counts == 1) == len(m.segments)
     assert math.isclose(m.area, 40 + 40 + 4 * math.hypot(4, rise), rel_tol=1e-12)
+
+
+def test_the_walking_direction_follows_the_surface():
+    """On the strip with a door across its whole width, people walk straight to the door:
+    -grad(phi) is a unit vector along -x on the levels and down the slope on the stair."""
+    from pedmesh.eikonal.surface import surface_gradient
+
+    m = triangulate_building(strip(3.0, door=(0.0, 4.0)), max_area=0.5, feature_area=None)
+    g = surface_gradient(m, SurfaceEikonalSolver(m).solve(1.0))
+    assert np.allclose(np.linalg.norm(g, axis=1), 1.0, atol=1e-9)
+    ramp = m.pieces[m.piece_index("ramp")].triangles
+    assert np.allclose(g[ramp], [0.8, 0.0, 0.6], atol=1e-9)  # up the 3-4-5 slope
+    assert np.allclose(np.abs(np.sum(g * m.normals, axis=1)), 0.0, atol=1e-12)  # tangent

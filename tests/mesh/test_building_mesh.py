@@ -58,3 +58,23 @@ def test_commands_that_cannot_run_a_building_say_so(tmp_path, capsys):
     assert main(["run", str(p), "--out", str(tmp_path / "r"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "is a building (levels and stairs)" in err[0]
+
+
+def test_the_shipped_office_building(geometries_dir, tmp_path, capsys):
+    """geometries/office.json: five storeys, two stairwells, a door on each side; its mesh,
+    route and 3-D model."""
+    import trimesh
+
+    b = pedmesh.load_room(geometries_dir / "office.json")
+    assert len(b.levels) == 5 and len(b.stairs) == 8 and b.exit_names == ("west-door",
+                                                                         "east-door")
+    assert main(["route", str(geometries_dir / "office.json"), "-o",
+                 str(tmp_path / "r.vtu")]) == 0
+    assert "distance to exit on the surface" in capsys.readouterr().out
+    assert main(["export", str(geometries_dir / "office.json"), "-o",
+                 str(tmp_path / "o.glb")]) == 0
+    scene = trimesh.load(tmp_path / "o.glb")
+    names = set(scene.geometry)
+    assert {"ground/floor", "fourth/floor", "west-0-1/stairs", "east-3-4/stairs"} <= names
+    # glTF is y-up: the top floor's walls reach 14 m + 2.5 m
+    assert math.isclose(scene.bounds[1][1], 16.5, rel_tol=1e-6)
