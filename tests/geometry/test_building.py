@@ -106,3 +106,33 @@ def test_the_cli_reports_a_bad_building_in_one_line(tmp_path, capsys):
     assert main(["mesh", str(p), "-o", str(tmp_path / "m.vtu")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "steeper than 45 degrees" in err[0]
+
+
+def test_a_building_round_trips_through_dxf(tmp_path, geometries_dir):
+    """DXF: each level's layers under its name ('ground.room', 'ground.exit-front', a TEXT
+    'z=...' on the room layer), a stair on 'stair-NAME' with its edges on
+    'stair-NAME.bottom-LEVEL' and 'stair-NAME.top-LEVEL'."""
+    b = pedmesh.load_room(geometries_dir / "office.json")
+    pedmesh.save_room(b, tmp_path / "office.dxf")
+    back = pedmesh.load_room(tmp_path / "office.dxf")
+    assert isinstance(back, Building)
+    assert back.levels == b.levels and back.stairs == b.stairs
+
+
+def test_dxf_building_errors_are_one_line(tmp_path):
+    import ezdxf
+
+    doc = ezdxf.new("R2010")
+    msp = doc.modelspace()
+    msp.add_lwpolyline([(0, 0), (10, 0), (10, 5), (0, 5)], close=True,
+                       dxfattribs={"layer": "ground.room"})
+    doc.saveas(tmp_path / "noz.dxf")
+    with pytest.raises(RoomFileError, match="level 'ground': its room layer needs one TEXT "
+                                            "'z=HEIGHT'"):
+        pedmesh.load_room(tmp_path / "noz.dxf")
+    msp.add_text("z=0", dxfattribs={"layer": "ground.room"})
+    msp.add_lwpolyline([(10, 0), (14, 0), (14, 5), (10, 5)], close=True,
+                       dxfattribs={"layer": "stair-s"})
+    doc.saveas(tmp_path / "stair.dxf")
+    with pytest.raises(RoomFileError, match="stair 's' has no bottom"):
+        pedmesh.load_room(tmp_path / "stair.dxf")

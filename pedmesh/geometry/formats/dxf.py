@@ -10,6 +10,14 @@ MTEXT entity on its layer reading ``count=N``, ``spacing=S`` (m) or ``density=D`
 (ped/m^2); without one it uses ``spacing=1``. Text on the room layer is the room's
 description, and a room layer ``room-NAME`` names the room (else the file name does).
 Units are assumed to be metres.
+
+A **building** (:mod:`pedmesh.geometry.building`) puts each level's layers under the level's
+name and a dot: ``ground.room``, ``ground.exit-front``, ``first.start-offices``; a TEXT
+``z=3.5`` on a level's room layer gives its height [m]. A stair is a closed polyline on a
+layer ``stair-NAME``, its two edges LINEs (or 2-point polylines) on
+``stair-NAME.bottom-LEVEL`` and ``stair-NAME.top-LEVEL``, and optional TEXT
+``speed_up=F`` / ``speed_down=F`` on the stair's layer. A drawing with a dotted room
+layer is read as a building.
 """
 
 from __future__ import annotations
@@ -19,9 +27,10 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import RoomFileError
+from ..building import Building
 from ..room import Room
 from ._registry import RoomFormat, existing_file, register_format
-from .native import room_from_dict, room_to_dict
+from .native import building_to_dict, room_from_dict, room_to_dict
 
 __all__ = ["read_dxf", "write_dxf", "FLATTEN_DISTANCE"]
 
@@ -38,6 +47,9 @@ _ROLES = {
     "room": (None, True),
 }
 _PARAM = re.compile(r"^\s*(count|spacing|density)\s*=\s*([-+0-9.eE]+)\s*$")
+_NUMBER = re.compile(r"^\s*(z|speed_up|speed_down)\s*=\s*([-+0-9.eE]+)\s*$")
+_STAIR_END = re.compile(r"^stair[-_](.+)\.(bottom|top)[-_](.+)$", re.IGNORECASE)
+_STAIR = re.compile(r"^stair[-_](.+)$", re.IGNORECASE)
 
 
 def _role(layer: str) -> tuple[str, str | None] | None:
@@ -65,8 +77,9 @@ def _start_params(path, layer: str, texts: list[str]) -> dict[str, Any]:
     return params or {"spacing": 1.0}
 
 
-def read_dxf(path: str | Path) -> Room:
-    """Read a room from a DXF file (see the module docstring for the layer rules)."""
+def _entities(path):
+    """Every entity of the drawing's model space as (layer, kind, points, closed) or
+    (layer, "TEXT", text); a one-line error for an unreadable file."""
     import ezdxf
     import ezdxf.path
 
@@ -76,38 +89,64 @@ def read_dxf(path: str | Path) -> Room:
     except (ezdxf.DXFError, OSError, UnicodeDecodeError, ValueError) as exc:
         detail = str(exc).replace(str(p), "").replace("File '' ", "").strip()
         raise RoomFileError(f"{path}: not a valid DXF file ({detail})") from None
-    shapes: dict[str, list[tuple[str | None, list, str]]] = {r: [] for r in _ROLES}
-    texts: dict[str, list[str]] = {}
+    out = []
     for ent in doc.modelspace():
         layer = ent.dxf.layer
-        rn = _role(layer)
-        if rn is None:
-            continue
-        role, name = rn
         kind = ent.dxftype()
         if kind in ("TEXT", "MTEXT"):
-            txt = ent.plain_text() if kind == "MTEXT" else ent.dxf.text
-            texts.setdefault(layer, []).append(txt)
+            out.append((layer, "TEXT", ent.plain_text() if kind == "MTEXT" else ent.dxf.text))
             continue
         try:
             ph = ezdxf.path.make_path(ent)
         except TypeError:
-            raise RoomFileError(
-                f"{path}: layer '{layer}': unsupported entity {kind} for a {role}"
-            ) from None
+            out.append((layer, kind, None, False))
+            continue
         pts = [(float(v.x), float(v.y)) for v in ph.flattening(FLATTEN_DISTANCE)]
         closed = ph.is_closed or (len(pts) > 2 and pts[0] == pts[-1])
-        if _ROLES[role][1] and not closed:
-            raise RoomFileError(f"{path}: layer '{layer}': a {role} must be a closed polyline")
-        shapes[role].append((name, pts, layer))
+        out.append((layer, kind, pts, closed))
+    return p, out
+
+
+def _room_native(path, ents, default_name: str, level: str | None = None) -> dict[str, Any]:
+    """The native dict of one room (or one level's room) from its entities (layers without
+    the level prefix)."""
+    shapes: dict[str, list[tuple[str | None, list, str]]] = {r: [] for r in _ROLES}
+    texts: dict[str, list[str]] = {}
+    for ent in ents:
+        layer = ent[0]
+        rn = _role(layer)
+        if rn is None:
+            continue
+        role, name = rn
+        if ent[1] == "TEXT":
+            texts.setdefault(layer, []).append(ent[2])
+            continue
+        shown = f"{level}.{layer}" if level else layer
+        if ent[2] is None:
+            raise RoomFileError(f"{path}: layer '{shown}': unsupported entity {ent[1]} for a "
+                                f"{role}")
+        if _ROLES[role][1] and not ent[3]:
+            raise RoomFileError(f"{path}: layer '{shown}': a {role} must be a closed polyline")
+        shapes[role].append((name, ent[2], layer))
     rooms = shapes["room"]
+    where = f" of level '{level}'" if level else ""
     if not rooms:
-        raise RoomFileError(f"{path}: no closed polyline on a 'room' layer (the outer walls)")
+        raise RoomFileError(f"{path}: no closed polyline on a 'room' layer{where} (the outer "
+                            "walls)")
     if len(rooms) > 1:
-        raise RoomFileError(f"{path}: {len(rooms)} polylines on 'room' layers; expected one")
-    native: dict[str, Any] = {"outline": rooms[0][1], "name": rooms[0][0] or p.stem}
+        raise RoomFileError(f"{path}: {len(rooms)} polylines on 'room' layers{where}; "
+                            "expected one")
+    native: dict[str, Any] = {"outline": rooms[0][1], "name": rooms[0][0] or default_name}
     room_texts = texts.get(rooms[0][2], [])
-    if room_texts:
+    if level is not None:
+        z = [m for m in (_NUMBER.match(x) for x in room_texts) if m and m.group(1) == "z"]
+        if len(z) != 1:
+            raise RoomFileError(f"{path}: level '{level}': its room layer needs one TEXT "
+                                "'z=HEIGHT' (the level's height in m)")
+        native["z"] = float(z[0].group(2))
+        native["name"] = level
+        room_texts = [x for x in room_texts if not _NUMBER.match(x)]
+    if room_texts and level is None:
         native["description"] = "\n".join(room_texts)
     for role, (key, _closed) in _ROLES.items():
         if key is None:
@@ -123,34 +162,116 @@ def read_dxf(path: str | Path) -> Room:
             if role == "start":
                 el.update(_start_params(path, layer, texts.get(layer, [])))
             native.setdefault(key, []).append(el)
-    return room_from_dict(native, str(path))
+    return native
 
 
-def write_dxf(room: Room, path: str | Path) -> None:
-    """Write a room as a DXF drawing with one layer per element."""
+def read_dxf(path: str | Path) -> Room | Building:
+    """Read a room (or a building) from a DXF file (see the module docstring for the layer
+    rules)."""
+    p, ents = _entities(path)
+    levels: dict[str, list] = {}
+    stairs: dict[str, dict[str, Any]] = {}
+    plain = []
+    for ent in ents:
+        layer = ent[0]
+        m = _STAIR_END.match(layer)
+        if m:
+            st = stairs.setdefault(m.group(1), {"texts": []})
+            if ent[1] == "TEXT" or ent[2] is None or len(ent[2]) != 2:
+                raise RoomFileError(f"{path}: layer '{layer}': a stair edge must be one LINE "
+                                    "(two points)")
+            st[m.group(2).lower()] = {"level": m.group(3), "edge": ent[2]}
+            continue
+        m = _STAIR.match(layer)
+        if m and "." not in layer:
+            st = stairs.setdefault(m.group(1), {"texts": []})
+            if ent[1] == "TEXT":
+                st["texts"].append(ent[2])
+            elif ent[2] is None or not ent[3]:
+                raise RoomFileError(f"{path}: layer '{layer}': a stair must be a closed "
+                                    "polyline")
+            else:
+                st["polygon"] = ent[2]
+            continue
+        if "." in layer:
+            level, _, rest = layer.partition(".")
+            levels.setdefault(level, []).append((rest, *ent[1:]))
+        else:
+            plain.append(ent)
+    if not levels and not stairs:
+        return room_from_dict(_room_native(path, plain, p.stem), str(path))
+    if any(_role(e[0]) is not None for e in plain):
+        raise RoomFileError(f"{path}: a building's layers go under a level's name "
+                            f"('LEVEL.room', ...), but layer '{plain[0][0]}' has none")
+    data: dict[str, Any] = {"name": p.stem, "levels": [], "stairs": []}
+    for name, lv_ents in levels.items():
+        data["levels"].append(_room_native(path, lv_ents, name, level=name))
+    for name, st in stairs.items():
+        for key in ("polygon", "bottom", "top"):
+            if key not in st:
+                raise RoomFileError(f"{path}: stair '{name}' has no {key} (layers 'stair-NAME',"
+                                    " 'stair-NAME.bottom-LEVEL', 'stair-NAME.top-LEVEL')")
+        item = {"name": name, "polygon": st["polygon"], "bottom": st["bottom"],
+                "top": st["top"]}
+        for text in st["texts"]:
+            m = _NUMBER.match(text)
+            if not m or m.group(1) == "z":
+                raise RoomFileError(f"{path}: stair '{name}': cannot read {text!r} (expected "
+                                    "speed_up=F or speed_down=F)")
+            item[m.group(1)] = float(m.group(2))
+        data["stairs"].append(item)
+    return room_from_dict(data, str(path))
+
+
+def write_dxf(room: Room | Building, path: str | Path) -> None:
+    """Write a room (or a building) as a DXF drawing with one layer per element."""
     import ezdxf
 
     doc = ezdxf.new("R2010")
     doc.units = ezdxf.units.M
     msp = doc.modelspace()
-    d = room_to_dict(room)
 
     def add(layer: str, pts: list, closed: bool) -> None:
         if layer not in doc.layers:
             doc.layers.add(layer)
         msp.add_lwpolyline([tuple(p) for p in pts], close=closed, dxfattribs={"layer": layer})
 
+    if isinstance(room, Building):
+        b = building_to_dict(room)
+        for lv, level in zip(b["levels"], room.levels):
+            _write_room(msp, add, lv, f"{lv['name']}.", "room", level.room.description)
+            x, y = lv["outline"][0]
+            msp.add_text(f"z={lv['z']!r}", dxfattribs={"layer": f"{lv['name']}.room",
+                                                       "insert": (x, y)})
+        for s in b["stairs"]:
+            add(f"stair-{s['name']}", s["polygon"], True)
+            for end in ("bottom", "top"):
+                add(f"stair-{s['name']}.{end}-{s[end]['level']}", s[end]["edge"], False)
+            x, y = s["polygon"][0]
+            for k in ("speed_up", "speed_down"):
+                msp.add_text(f"{k}={s[k]!r}", dxfattribs={"layer": f"stair-{s['name']}",
+                                                          "insert": (x, y)})
+        doc.saveas(Path(path))
+        return
+    d = room_to_dict(room)
     room_layer = f"room-{room.name}" if room.name else "room"
-    add(room_layer, d["outline"], True)
-    if room.description:
+    _write_room(msp, add, d, "", room_layer, room.description)
+    doc.saveas(Path(path))
+
+
+def _write_room(msp, add, d: dict, prefix: str, room_layer: str, description: str) -> None:
+    """The layers of one room's native dict ``d`` (a level's under ``prefix``)."""
+    add(prefix + room_layer, d["outline"], True)
+    if description:
         x, y = d["outline"][0]
-        msp.add_mtext(room.description, dxfattribs={"layer": room_layer, "insert": (x, y)})
+        msp.add_mtext(description, dxfattribs={"layer": prefix + room_layer,
+                                               "insert": (x, y)})
     for role, (key, closed) in _ROLES.items():
         if key is None:
             continue
         coord_key = "polygon" if closed else "polyline"
         for el in d.get(key, []):
-            layer = f"{role}-{el['name']}"
+            layer = f"{prefix}{role}-{el['name']}"
             add(layer, el[coord_key], closed)
             if role == "start":
                 for k in ("count", "spacing", "density"):
@@ -158,7 +279,6 @@ def write_dxf(room: Room, path: str | Path) -> None:
                         x, y = el[coord_key][0]
                         msp.add_text(f"{k}={el[k]!r}",
                                      dxfattribs={"layer": layer, "insert": (x, y)})
-    doc.saveas(Path(path))
 
 
 register_format(RoomFormat("dxf", (".dxf",), read_dxf, write_dxf))
