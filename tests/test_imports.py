@@ -119,7 +119,7 @@ def test_every_module_imports_on_its_own():
 #: the package's layers, bottom first: a module may import its own layer and those below,
 #: never one above (a module belongs to the longest prefix that names it)
 LAYERS: list[tuple[str, ...]] = [
-    ("pedmesh.errors", "pedmesh._version", "pedmesh._signals"),
+    ("pedmesh.errors", "pedmesh._version", "pedmesh._signals", "pedmesh._threads"),
     ("pedmesh.parameters",),
     ("pedmesh.speed", "pedmesh.population"),
     ("pedmesh.presets",),

@@ -26,6 +26,17 @@ SUBCOMMANDS = {
 }
 
 
+class _Version(argparse.Action):
+    """``--version``: the version and the threading layer of the parallel kernels (found
+    only when asked: it starts numba)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from ..models.continuum.solver import threading_note
+
+        print(f"pedmesh {__version__}\n{threading_note()}")
+        parser.exit()
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pedmesh",
@@ -35,7 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
         ),
         epilog="Add --debug anywhere to see a full traceback on errors.",
     )
-    parser.add_argument("--version", action="version", version=f"pedmesh {__version__}")
+    parser.add_argument("--version", action=_Version, nargs=0,
+                        help="show the version and the threading layer, and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, modname in SUBCOMMANDS.items():
         mod = importlib.import_module(modname)

@@ -106,6 +106,10 @@ class MacroRun:
         self.mesh = mesh
         #: things the user should know about this run (e.g. a calibration for other parameters)
         self.warnings = list(getattr(self.model, "warnings", []))
+        from .solver import threading_layer, threading_note
+
+        if threading_layer() != "tbb":  # (say what it costs: pedmesh._threads)
+            self.warnings.append(threading_note())
         self.solver = FVSolver(mesh, self.model, self.fv_options)
         #: start areas with a premovement time or arrivals (entrances): (their density (m,)
         #: [ped/m^2], the distribution or schedule, their number of people [ped]); their

@@ -7,6 +7,10 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from ..._threads import ensure_tbb
+
+ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
+
 #: compile options of the finite-volume kernels: ``error_model="numpy"`` drops the
 #: ZeroDivisionError check numba puts on every float division (a branch per division that
 #: also keeps LLVM from vectorising; the kernels guard their divisions themselves), and

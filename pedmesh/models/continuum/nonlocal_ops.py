@@ -41,6 +41,9 @@ import scipy.sparse as sp
 from ...mesh.triangle_mesh import BoundaryKind, TriMesh
 from .physics import RadialTables
 from ...parameters import DEFAULTS as D
+from ..._threads import ensure_tbb
+
+ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 
 __all__ = ["PairOperators", "build_pair_operators", "LongRangeOperator"]
 

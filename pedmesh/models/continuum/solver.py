@@ -41,7 +41,8 @@ from .base import MacroModel
 from .reconstruction import build_reconstruction
 
 __all__ = ["FVOptions", "FVState", "FVSolver", "FVController", "PARALLEL_MIN_CELLS",
-           "PARALLEL_MIN_CELLS_TBB", "threading_layer", "parallel_min_cells"]
+           "PARALLEL_MIN_CELLS_TBB", "threading_layer", "threading_note",
+           "parallel_min_cells"]
 
 #: meshes with fewer cells run the kernels on one thread, under numba's OpenMP (or
 #: workqueue) threading layer: measured on 2 cores (idle), Example 2 eos steps 1.6x faster on
@@ -603,6 +604,19 @@ def threading_layer() -> str:
     except ValueError:  # no parallel loop has run yet in this process
         K.launch_threads(np.zeros(1))
         return numba.threading_layer()
+
+
+def threading_note() -> str:
+    """One line on the threading layer (for ``pedmesh --version`` and the run warnings):
+    which layer numba runs the parallel kernels on, and what it means when it is not TBB."""
+    from ..._threads import tbb_load_status
+
+    layer = threading_layer()
+    if layer == "tbb":
+        return "parallel kernels on numba's TBB threading layer"
+    return (f"parallel kernels on numba's '{layer}' threading layer, not TBB (oneTBB "
+            f"{tbb_load_status()}): several runs at once may slow each other down many "
+            "times; `pip install tbb` to fix")
 
 
 def parallel_min_cells() -> int:
