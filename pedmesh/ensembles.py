@@ -21,20 +21,34 @@ machine; ``scheduler="tcp://HOST:PORT"`` (or a ``client``) sends it to an existi
 cluster, whose workers must see ``DIR`` and the room file at the same paths (a shared file
 system, as on HPC clusters).
 
-Running the same call again skips finished members, recognised by the settings their
-run recorded; a member folder recorded with other settings is an error (nothing is
-reused silently), and a failed or interrupted member is run again. A member that raises
-is recorded as ``failed`` with its error and the others go on; an interrupted ensemble
-keeps every finished member.
+Members are atomic and idempotent. A member runs in a temporary folder next to its own,
+``members/<id>.tmp-<pid>-<ns>/``, renamed to ``members/<id>/`` only once its run has ended
+with its final summary (``finished``, ``stopped at t_end``, or ``failed`` with the error),
+so ``members/<id>/`` never holds a cut-off run. A member's folder that holds a finished
+run is never cleared or run over: a task that Dask computes again (after a worker died)
+finds it and returns its summary. A killed attempt's temporary folder is removed when
+nobody holds its lock. The rows of ``ensemble.csv`` (status, counts, times, wall time,
+worker, error) are read from each member's own ``summary.json``, also after Ctrl-C.
+
+An ensemble owns ``DIR`` as a run owns its folder: it refuses a non-empty folder that is
+not a pedmesh ensemble, holds ``DIR/.lock`` while it runs (a second ensemble into the same
+folder is an error), and leaves other files alone. Running the same call again skips
+finished members, recognised by the settings their run recorded; a member folder recorded
+with other settings is an error (nothing is reused silently), and a failed or interrupted
+member is run again. A member that raises is recorded as ``failed`` with its error and the
+others go on; an interrupted ensemble keeps every finished member.
 """
 
 from __future__ import annotations
 
+import errno
 import functools
 import itertools
 import json
 import math
 import os
+import re
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -43,17 +57,23 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from ._version import __version__
 from .errors import ParameterError, PedmeshError
 from .run.results import FINISHED_STATUSES
 from .mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
 from .parameters import DEFAULT_T_END_S
 
-__all__ = ["ensemble", "EnsembleError", "member_seeds", "parse_sweep"]
+__all__ = ["ensemble", "EnsembleError", "member_seeds", "parse_sweep", "run_member"]
 
 #: columns of ensemble.csv before the swept parameters' columns are inserted after "seed"
 _COLUMNS = ["member", "point", "seed", "status", "n_initial", "n_evacuated", "t_evac_50",
             "t_evac_90", "t_evac_100", "wall_time_s", "worker", "error"]
 _TIMES = ("t_evac_50", "t_evac_90", "t_evac_100")
+#: the values of a member's row that come from its summary.json
+_FROM_SUMMARY = ("n_initial", "n_evacuated", *_TIMES, "wall_time_s")
+#: a member's temporary folder (``<id>.tmp-<pid>-<ns>``) or a replaced run on its way out
+#: (``<id>.old-<pid>-<ns>``), next to its own folder in ``members/``
+_SCRATCH = re.compile(r"[0-9]+-[0-9]+\.(tmp|old)-[0-9]+-[0-9]+")
 
 
 class EnsembleError(PedmeshError):
@@ -126,31 +146,166 @@ def _worker_address() -> str:
         return "local"
 
 
+def _scratch_name(final: Path, kind: str) -> Path:
+    return final.with_name(f"{final.name}.{kind}-{os.getpid()}-{time.time_ns()}")
+
+
+def _summary_row(folder: Path, summary: Mapping[str, Any]) -> dict[str, Any]:
+    """The values of a member's row that its run's ``summary`` (in ``folder``) gives:
+    status (a killed run reads as ``interrupted``), counts, times, wall time, error, and
+    the worker if the summary names it."""
+    from .run.output import run_status
+
+    row: dict[str, Any] = {"status": run_status(folder, summary),
+                           **{k: summary.get(k) for k in _FROM_SUMMARY},
+                           "error": summary.get("error") or ""}
+    ens = summary.get("ensemble")
+    if isinstance(ens, Mapping) and ens.get("worker"):
+        row["worker"] = ens["worker"]
+    return row
+
+
+def _finished_run(final: Path, settings: Mapping[str, Any]) -> dict | None:
+    """The summary of the finished run in ``final`` if it holds one (EnsembleError if it
+    was made with other settings), else None."""
+    from .run.output import _read_summary, run_status
+    from .run.results import RunResult
+
+    s = _read_summary(final) if final.is_dir() else None
+    if s is None or run_status(final, s) not in FINISHED_STATUSES:
+        return None
+    diff = RunResult(final, s).settings_differences(dict(settings))
+    if diff:
+        raise EnsembleError(f"{final} was made with other settings ({diff[0][0]}); use "
+                            "another --out or delete it")
+    return s
+
+
+def _clear_member(folder: Path) -> None:
+    """Remove ``folder``, a member's folder that holds a run which did not finish (failed,
+    interrupted or cut off), so that a new run can take its place. It is renamed away
+    first, so ``folder`` never holds half of it. EnsembleError if it holds anything but a
+    pedmesh run's files, or a run that is still writing."""
+    from .run.output import LOCK, _is_run_file, _lock_is_held, _read_summary, run_status
+
+    if folder.is_symlink() or not folder.is_dir():
+        raise EnsembleError(f"{folder}: not a pedmesh run folder; move it away or choose "
+                            "another --out")
+    s = _read_summary(folder)
+    if (s is not None and run_status(folder, s) == "running") or (
+            s is None and _lock_is_held(folder)):
+        raise EnsembleError(f"{folder}: another pedmesh run is writing into this folder; "
+                            "wait for it or choose another --out")
+    names = sorted(e.name for e in folder.iterdir())
+    if s is None and names not in ([], [LOCK]) and "summary.json" not in names:
+        raise EnsembleError(f"{folder}: not a pedmesh run folder; move it away or choose "
+                            "another --out")
+    foreign = [n for n in names if not _is_run_file(n)]
+    if foreign:
+        raise EnsembleError(f"{folder / foreign[0]}: not a file of pedmesh's in a member's "
+                            "folder that must run again; move it away")
+    old = _scratch_name(folder, "old")
+    os.rename(folder, old)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def _install(tmp: Path, final: Path) -> dict:
+    """Rename the ended run in ``tmp`` to ``final`` and return its summary. If ``final``
+    already holds a finished run (another attempt of the same member won), that one stays,
+    ``tmp`` goes, and its summary is returned; an unfinished run there is replaced."""
+    from .run.output import _read_summary, run_status
+
+    for _ in range(10):
+        if not os.path.lexists(final):
+            try:
+                os.rename(tmp, final)  # atomic; fails if another attempt got there first
+            except OSError as exc:
+                if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
+                    raise
+                continue
+            return _read_summary(final) or {}
+        have = _read_summary(final) if final.is_dir() else None
+        if have is not None and run_status(final, have) in FINISHED_STATUSES:
+            shutil.rmtree(tmp, ignore_errors=True)
+            return have
+        try:
+            _clear_member(final)
+        except FileNotFoundError:  # another attempt moved it meanwhile
+            continue
+    raise EnsembleError(f"{final}: could not put the member's run in place")
+
+
+def _run_in_temp(task: Mapping[str, Any], final: Path, worker: str) -> dict:
+    """Run the member of ``task`` in a temporary folder next to ``final`` and rename it to
+    ``final`` once the run has ended with its final summary (see :func:`_install`);
+    returns that summary. An interrupted or killed attempt never reaches ``final``."""
+    from .run.driver import RunInterrupted, execute, plan_run
+    from .run.output import RunWriter, _read_summary
+
+    room, mesh = _room_and_mesh(task["geometry"], task["mesh_options"], task.get("max_cells"))
+    plan = plan_run(room, mesh, task["model"], overrides=dict(task["overrides"]),
+                    t_end=task["t_end"], geometry=task["geometry"],
+                    mesh_options=dict(task["mesh_options"]),
+                    model_options=dict(task["model_options"]), preset=task["preset"])
+    header = {**plan.header, "ensemble": {"member": task["member"], "point": task["point"],
+                                          "seed": task["seed"], "worker": worker}}
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = _scratch_name(final, "tmp")
+    try:
+        writer = RunWriter(tmp, header, exit_names=mesh.exit_names)
+        error = None
+        try:
+            execute(plan, writer, quiet=True, where=str(final))
+        except RunInterrupted:
+            raise
+        except Exception as exc:  # a failed run: its summary says failed, with the error
+            error = exc
+        s = _read_summary(tmp)
+        if s is None or s.get("status") not in (*FINISHED_STATUSES, "failed"):
+            raise error or EnsembleError(f"member {task['member']}: its run wrote no final "
+                                         "summary")
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return _install(tmp, final)
+
+
 def run_member(task: Mapping[str, Any]) -> dict[str, Any]:
     """Run one member (on a worker) and return its row; never raises for a failed run.
+
+    Idempotent: if the member's folder already holds its finished run (Dask computes a
+    task again when the worker that held its result died), nothing is run and the row of
+    that run is returned. Otherwise the run goes to a temporary folder that becomes the
+    member's folder when the run has ended (:func:`_run_in_temp`). The row's status,
+    counts, times, wall time and error are those of the member's ``summary.json``.
+
     The member's compiled kernels run on one thread: the workers already keep the cores
     busy, and threads that wait for each other on a busy machine are far slower than one
     (see :data:`pedmesh.models.continuum.solver.PARALLEL_MIN_CELLS`)."""
     import numba
 
-    from .run import run_model
+    from .run.driver import RunInterrupted, run_settings
 
     numba.set_num_threads(1)
 
     t0 = time.perf_counter()
+    worker = _worker_address()
     row: dict[str, Any] = {"member": task["member"], "point": task["point"],
-                           "seed": task["seed"], **task["values"],
-                           "worker": _worker_address()}
+                           "seed": task["seed"], **task["values"], "worker": worker}
+    final = Path(task["out_dir"])
     try:
-        room, mesh = _room_and_mesh(task["geometry"], task["mesh_options"],
-                                    task.get("max_cells"))
-        s = run_model(room, mesh, task["model"], overrides=dict(task["overrides"]),
-                      t_end=task["t_end"], out_dir=task["out_dir"], quiet=True,
-                      geometry=task["geometry"], mesh_options=dict(task["mesh_options"]),
-                      model_options=dict(task["model_options"]), preset=task["preset"])
-        row.update({k: s.get(k) for k in ("status", "n_initial", "n_evacuated", *_TIMES)})
-        row["wall_time_s"] = s.get("wall_time_s")
-        row["error"] = ""
+        settings = run_settings(task["model"], overrides=dict(task["overrides"]),
+                                t_end=task["t_end"], geometry=task["geometry"],
+                                mesh_options=dict(task["mesh_options"]),
+                                model_options=dict(task["model_options"]),
+                                preset=task["preset"])
+        summary = _finished_run(final, settings)
+        if summary is None:
+            summary = _run_in_temp(task, final, worker)
+        row.update(_summary_row(final, summary))
+    except RunInterrupted as exc:
+        row.update(status="interrupted", wall_time_s=time.perf_counter() - t0,
+                   error=f"interrupted at t = {exc.t:.2f} s; its output was discarded")
     except BaseException as exc:  # recorded, so that the other members go on
         if isinstance(exc, KeyboardInterrupt):
             raise
@@ -183,30 +338,37 @@ def _plan(geometry: str, model: str, members: int, out: Path, *, overrides: dict
     return plan
 
 
-def _existing(m: _Member) -> dict | None:
-    """The finished run of member ``m`` if its folder holds one made with the same
-    settings; None if it must run; EnsembleError if its folder holds something else."""
+def _existing(m: _Member) -> tuple[dict | None, bool]:
+    """(summary, clear) of member ``m``: the summary of its finished run if its folder
+    holds one made with the same settings; else None, and whether its folder holds an
+    unfinished run to clear before the member runs again. EnsembleError if its folder
+    holds something else, or a run made with other settings."""
+    from .run.output import LOCK, _read_summary, run_status
     from .run.results import RunResult
 
     d = m.out_dir
-    if not d.exists() or not any(d.iterdir()):
-        return None
-    if not (d / "summary.json").exists():
-        if [e.name for e in d.iterdir()] == [".lock"]:
-            return None
+    if not os.path.lexists(d):
+        return None, False
+    if d.is_symlink() or not d.is_dir():
         raise EnsembleError(f"{d}: not a pedmesh run folder; move it away or choose another "
                             "--out")
-    res = RunResult.load(d)
-    diff = res.settings_differences(m.settings)
+    names = [e.name for e in d.iterdir()]
+    if not names:
+        return None, True
+    s = _read_summary(d)
+    if s is None:
+        if names == [LOCK] or "summary.json" in names:  # a run cut off at its start
+            return None, True
+        raise EnsembleError(f"{d}: not a pedmesh run folder; move it away or choose another "
+                            "--out")
+    diff = RunResult(d, s).settings_differences(m.settings)
     if diff:
         what = ", ".join(f"{k} ({there!r} there, {now!r} now)" for k, there, now in diff[:3])
         raise EnsembleError(f"member {m.member}: {d} was made with other settings: {what}; "
                             "use another --out or delete it")
-    if not res.finished:
-        return None
-    s = res.summary
-    return {"status": res.status, **{k: s.get(k) for k in ("n_initial", "n_evacuated",
-                                                             *_TIMES, "wall_time_s")}}
+    if run_status(d, s) in FINISHED_STATUSES:
+        return s, False
+    return None, True
 
 
 def _stats(values: Sequence[float]) -> dict[str, float | None]:
@@ -313,27 +475,39 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
     _check_options(entry, members, seed, workers, t_end)
     seeded = entry.random
     sweep, overrides = _checked_sweep(sweep, overrides)
+    _check_names(entry, overrides, sweep)
+    if client is None:
+        _check_scheduler(scheduler)
     mesh_options = {"max_area": max_area, "min_angle": min_angle, "feature_area": feature_area,
                     "exit_size": exit_size}
     preset = _check_room(geometry, preset, mesh_options, max_cells)
     out = Path(out)
     plan = _plan(geometry, name, members, out, overrides=overrides, sweep=sweep, seed=seed,
                  t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=seeded)
-    rows, todo = _resume(plan, out)
-    out.mkdir(parents=True, exist_ok=True)
-    frame = functools.partial(_frame, rows, plan, _COLUMNS[:3] + list(sweep) + _COLUMNS[3:])
-    _write_csv(out / "ensemble.csv", frame())
-    meta = {"geometry": geometry, "model": name, "members": members, "seed": seed,
-            "overrides": overrides, "sweep": sweep, "t_end": t_end, "mesh": mesh_options,
-            "preset": preset}
-    if not quiet and len(todo) < len(plan):
-        print(f"pedmesh: {len(plan) - len(todo)} of {len(plan)} members already finished "
-              "(skipped)", file=sys.stderr)
-    if todo:
-        _compute(todo, rows, plan, name, geometry, t_end, mesh_options, preset, seeded, out,
-                 frame, client=client, scheduler=scheduler, workers=workers, quiet=quiet,
-                 max_cells=max_cells)
-    return _finish(out, frame(), sweep, meta)
+    lock = _claim_ensemble_dir(out)
+    try:
+        _remove_scratch(out / "members")
+        rows, todo = _resume(plan, out)
+        frame = functools.partial(_frame, rows, plan,
+                                  _COLUMNS[:3] + list(sweep) + _COLUMNS[3:])
+        _write_csv(out / "ensemble.csv", frame())
+        meta = {"pedmesh_version": __version__, "geometry": geometry, "model": name,
+                "members": members, "seed": seed, "overrides": overrides, "sweep": sweep,
+                "t_end": t_end, "mesh": mesh_options, "preset": preset}
+        if not quiet and len(todo) < len(plan):
+            print(f"pedmesh: {len(plan) - len(todo)} of {len(plan)} members already finished "
+                  "(skipped)", file=sys.stderr)
+        if todo:
+            _compute(todo, rows, plan, name, geometry, t_end, mesh_options, preset, seeded,
+                     out, frame, client=client, scheduler=scheduler, workers=workers,
+                     quiet=quiet, max_cells=max_cells)
+        _from_folders(rows, plan)
+        return _finish(out, frame(), sweep, meta)
+    finally:
+        try:
+            _remove_scratch(out / "members")
+        finally:
+            lock.close()
 
 
 def _check_options(entry, members, seed, workers, t_end) -> None:
@@ -368,6 +542,98 @@ def _checked_sweep(sweep: Mapping[str, Sequence[Any]] | None,
     return sweep, overrides
 
 
+def _check_names(entry, overrides: Mapping[str, Any], sweep: Mapping[str, Any]) -> None:
+    """EnsembleError naming the first set or swept parameter that model ``entry`` does not
+    declare (checked here, before any cluster starts, not in every member)."""
+    known = entry.parameter_names
+    for what, names in (("swept", sweep), ("set", overrides)):
+        unknown = sorted(set(names) - known)
+        if unknown:
+            raise EnsembleError(f"unknown parameter '{unknown[0]}' ({what}) for model "
+                                f"'{entry.name}' (known: {', '.join(sorted(known))})")
+
+
+def _check_scheduler(scheduler: str | None) -> None:
+    """EnsembleError unless ``scheduler`` is None or a Dask address with a host and a port
+    (``tcp://HOST:PORT``); checked before anything is written or started."""
+    if scheduler is None:
+        return
+    what = f"scheduler address '{scheduler}'"
+    if not isinstance(scheduler, str) or not scheduler.strip():
+        raise EnsembleError(f"{what} is empty; give tcp://HOST:PORT")
+    try:
+        from distributed.comm.addressing import get_address_host_port, parse_address
+    except ImportError:
+        return  # reported with the install hint when the cluster is needed
+    try:
+        parse_address(scheduler)
+        host, port = get_address_host_port(scheduler)
+    except (ValueError, TypeError) as exc:
+        raise EnsembleError(f"{what} is not valid ({exc}); give tcp://HOST:PORT") from None
+    if not host or not 0 < int(port) < 65536:
+        raise EnsembleError(f"{what} is not valid (a host and a port 1-65535 are needed); "
+                            "give tcp://HOST:PORT")
+
+
+def _is_ensemble_dir(d: Path) -> bool:
+    """Whether ``d`` holds a pedmesh ensemble: its ensemble.csv (pedmesh's columns) or
+    ensemble.json, or nothing but a ``members`` folder."""
+    from .run.output import LOCK
+
+    try:
+        with open(d / "ensemble.csv", encoding="utf-8") as f:
+            if f.readline().startswith(",".join(_COLUMNS[:3]) + ","):
+                return True
+    except (OSError, ValueError):
+        pass
+    try:
+        data = json.loads((d / "ensemble.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        data = None
+    if isinstance(data, dict) and ("pedmesh_version" in data
+                                   or {"model", "members", "points"} <= set(data)):
+        return True
+    names = {e.name for e in d.iterdir()} - {LOCK}
+    return names == {"members"} and (d / "members").is_dir()
+
+
+def _claim_ensemble_dir(out: Path):
+    """Make ``out`` this ensemble's (as :func:`pedmesh.run.output.claim_run_dir` does for a
+    run): refuse a non-empty folder that is not a pedmesh ensemble, before writing
+    anything, and one another ensemble is writing into; returns the held lock file."""
+    from .run.output import LOCK, fcntl
+
+    if os.path.lexists(out) and not out.is_dir():
+        raise EnsembleError(f"{out}: exists and is not a directory; choose another --out")
+    if out.is_dir() and any(e.name != LOCK for e in out.iterdir()) \
+            and not _is_ensemble_dir(out):
+        raise EnsembleError(f"{out}: not empty and not a pedmesh ensemble directory; choose "
+                            "another --out (pedmesh does not write into other files)")
+    out.mkdir(parents=True, exist_ok=True)
+    lock = open(out / LOCK, "a+")
+    if fcntl is not None:
+        try:
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            raise EnsembleError(f"{out}: another pedmesh ensemble is writing into this "
+                                "directory; wait for it or choose another --out") from None
+    return lock
+
+
+def _remove_scratch(members: Path) -> None:
+    """Remove the temporary folders of members' attempts that were killed (their lock
+    free): a running attempt holds its lock, a killed one no longer does."""
+    from .run.output import _lock_is_held
+
+    if not members.is_dir():
+        return
+    for e in members.iterdir():
+        if _SCRATCH.fullmatch(e.name) and e.is_dir() and not e.is_symlink() \
+                and _lock_is_held(e) is False:
+            shutil.rmtree(e, ignore_errors=True)
+
+
 def _check_room(geometry: str, preset: str | None, mesh_options: Mapping[str, Any],
                 max_cells: float | None) -> str | None:
     """Load the room once on the client, so that a bad room file or an oversized mesh fails
@@ -383,30 +649,54 @@ def _check_room(geometry: str, preset: str | None, mesh_options: Mapping[str, An
 
 
 def _resume(plan: list[_Member], out: Path) -> tuple[dict[str, dict], list[_Member]]:
-    """The first rows of ensemble.csv (members already finished in ``out`` with their
-    results and the worker recorded in an earlier ensemble.csv, the others ``pending``)
-    and the members still to run."""
+    """The first rows of ensemble.csv (members already finished in ``out``, with the
+    values of their summaries, the others ``pending``) and the members still to run. The
+    folders of members that must run again and hold an unfinished run are cleared, once
+    every member's folder has been checked."""
     import pandas as pd
 
     rows: dict[str, dict] = {}
     todo: list[_Member] = []
-    previous = {}
-    if (out / "ensemble.csv").exists():
-        try:
-            old = pd.read_csv(out / "ensemble.csv", dtype={"member": str}, keep_default_na=False)
+    previous: dict[str, dict] = {}
+    try:  # the workers of members an earlier pedmesh did not name in their summaries
+        old = pd.read_csv(out / "ensemble.csv", dtype=str, keep_default_na=False)
+        if {"member", "worker"} <= set(old.columns):
             previous = {str(r["member"]): r for r in old.to_dict("records")}
-        except (ValueError, OSError):
-            previous = {}
+    except (ValueError, OSError, pd.errors.ParserError):
+        previous = {}
+    clear = []
     for m in plan:
-        done = _existing(m)
+        done, stale = _existing(m)
         base = {"member": m.member, "point": m.point, "seed": m.seed, **m.values}
         if done is None:
             todo.append(m)
             rows[m.member] = {**base, "status": "pending", "error": ""}
+            if stale:
+                clear.append(m.out_dir)
         else:
             prev = previous.get(m.member, {})
-            rows[m.member] = {**base, **done, "worker": prev.get("worker", ""), "error": ""}
+            rows[m.member] = {**base, "worker": prev.get("worker", ""),
+                              **_summary_row(m.out_dir, done)}
+    for d in clear:
+        _clear_member(d)
     return rows, todo
+
+
+def _from_folders(rows: dict[str, dict], plan: list[_Member],
+                  members: Sequence[_Member] | None = None, *,
+                  missing: str | None = None) -> None:
+    """Update the rows of ``members`` (default: all of ``plan``) from their folders'
+    summaries, so that ensemble.csv says what each member's summary.json says; a member
+    without a summary keeps its row, or gets status ``missing`` if that is given and its
+    row is still ``submitted`` or ``pending``."""
+    from .run.output import _read_summary
+
+    for m in plan if members is None else members:
+        s = _read_summary(m.out_dir) if m.out_dir.is_dir() else None
+        if s is not None:
+            rows[m.member].update(_summary_row(m.out_dir, s))
+        elif missing and rows[m.member].get("status") in ("submitted", "pending"):
+            rows[m.member].update(status=missing)
 
 
 def _finish(out: Path, result, sweep: dict, meta: dict):
@@ -451,7 +741,11 @@ def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | N
 
 def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, seeded, out,
              frame, *, client, scheduler, workers, quiet, max_cells=None) -> None:
-    """Submit the members in ``todo`` and record their rows as they finish."""
+    """Submit the members in ``todo`` and record their rows as they finish, each from the
+    member's own summary. A collected result is released at once, so that Dask does not
+    compute it again when the worker holding it dies. On Ctrl-C the members not collected
+    take their rows from their folders (``interrupted`` where there is none), once before
+    and once after the cluster is closed."""
     try:
         from distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -463,7 +757,7 @@ def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, see
         if scheduler:
             try:
                 client = own_client = Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError) as exc:
+            except (OSError, TimeoutError, ValueError) as exc:
                 raise EnsembleError(f"cannot reach the Dask scheduler at {scheduler}: "
                                     f"{exc}") from None
         else:
@@ -471,6 +765,9 @@ def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, see
             own_cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                        host="127.0.0.1", dashboard_address="127.0.0.1:0")
             client = own_client = Client(own_cluster)
+    interrupted: KeyboardInterrupt | None = None
+    pending: dict = {}
+    bar = None
     try:
         if not quiet:
             link = getattr(client, "dashboard_link", None)
@@ -482,40 +779,41 @@ def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, see
                   "overrides": m.overrides, "t_end": t_end, "out_dir": str(m.out_dir.resolve()),
                   "mesh_options": mesh_options, "preset": preset, "max_cells": max_cells,
                   "model_options": {"seed": m.seed} if seeded else {}} for m in todo]
-        futures = [client.submit(run_member, t, key=f"pedmesh-{m.member}-{time.time_ns()}",
-                                 pure=False) for m, t in zip(todo, tasks)]
-        for m in todo:
+        for m, t in zip(todo, tasks):
+            fut = client.submit(run_member, t, key=f"pedmesh-{m.member}-{time.time_ns()}",
+                                pure=False)
+            pending[fut] = m
             rows[m.member]["status"] = "submitted"
-        bar = tqdm(total=len(futures), unit="run", disable=quiet, file=sys.stderr,
+        bar = tqdm(total=len(pending), unit="run", disable=quiet, file=sys.stderr,
                    desc="ensemble", dynamic_ncols=True)
-        try:
-            for fut in as_completed(futures):
-                try:
-                    row = fut.result()
-                except Exception as exc:  # the worker died under it
-                    row = {"member": _member_of(fut, todo, futures), "status": "failed",
-                           "error": f"{type(exc).__name__}: {exc}"}
-                rows[row["member"]].update(row)
-                _write_csv(out / "ensemble.csv", frame())
-                bar.update(1)
-                failed = sum(r.get("status") == "failed" for r in rows.values())
-                if failed:
-                    bar.set_postfix_str(f"{failed} failed", refresh=False)
-        except KeyboardInterrupt:
-            client.cancel(futures)
-            for m in todo:
-                if rows[m.member]["status"] == "submitted":
-                    rows[m.member]["status"] = "interrupted"
+        for fut in as_completed(list(pending)):
+            m = pending.pop(fut)
+            try:
+                row = fut.result()
+            except Exception as exc:  # the worker died under it (too often)
+                row = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+            fut.release()
+            rows[m.member].update({k: v for k, v in row.items() if k != "member"})
+            _from_folders(rows, plan, [m])
             _write_csv(out / "ensemble.csv", frame())
-            raise
-        finally:
-            bar.close()
+            bar.update(1)
+            failed = sum(r.get("status") == "failed" for r in rows.values())
+            if failed:
+                bar.set_postfix_str(f"{failed} failed", refresh=False)
+    except KeyboardInterrupt as exc:
+        interrupted = exc
+        if pending:
+            client.cancel(list(pending))
+        _from_folders(rows, plan, todo, missing="interrupted")
+        _write_csv(out / "ensemble.csv", frame())
     finally:
+        if bar is not None:
+            bar.close()
         if own_client is not None:
             own_client.close()
         if own_cluster is not None:
             own_cluster.close()
-
-
-def _member_of(fut, todo, futures) -> str:
-    return todo[futures.index(fut)].member
+    if interrupted is not None:  # members that ended while the cluster shut down
+        _from_folders(rows, plan, todo, missing="interrupted")
+        _write_csv(out / "ensemble.csv", frame())
+        raise interrupted

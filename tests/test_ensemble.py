@@ -47,14 +47,18 @@ def dask_cluster_processes(tmp_path):
              "--no-dashboard", "--scheduler-file", str(sched_file)],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         deadline = time.time() + 60
-        while not sched_file.exists() and time.time() < deadline:
-            time.sleep(0.1)
-        assert sched_file.exists(), "the dask scheduler did not start"
+        info = None
+        while info is None and time.time() < deadline:  # the file is written, not renamed
+            try:
+                info = json.loads(sched_file.read_text())
+            except (OSError, ValueError):
+                time.sleep(0.1)
+        assert info is not None, "the dask scheduler did not start"
         procs.append(subprocess.Popen(
             [sys.executable, "-m", "dask", "worker", "--scheduler-file", str(sched_file),
              "--host", "127.0.0.1", "--nthreads", "1", "--nworkers", "1", "--no-dashboard"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        address = json.loads(sched_file.read_text())["address"]
+        address = info["address"]
         assert address.startswith("tcp://127.0.0.1:")
         with Client(address, timeout="30s") as c:
             c.wait_for_workers(1, timeout=90)
@@ -172,3 +176,316 @@ def test_bad_options_are_one_line(geometries_dir, tmp_path, capsys):
         assert main(["ensemble", room, "--out", str(tmp_path / "x"), "-q", *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], (args, err)
+
+
+# ------------------------------------------------------------------ faults (issue 36)
+FINISHED = ("finished", "stopped at t_end")
+#: the columns of ensemble.csv that come from a member's summary.json
+FROM_SUMMARY = ("status", "n_initial", "n_evacuated", "t_evac_50", "t_evac_90", "t_evac_100",
+                "wall_time_s")
+
+
+@pytest.fixture(scope="module")
+def room_b(tmp_path_factory):
+    """Room B of issue 36: 10 x 5 m, a 1 m door, 20 people (a member takes seconds)."""
+    path = tmp_path_factory.mktemp("room") / "room_b.json"
+    path.write_text(json.dumps({
+        "format": "pedmesh-room", "version": 1, "name": "B", "units": "m",
+        "outline": [[0, 0], [10, 0], [10, 5], [0, 5]],
+        "exits": [{"name": "door", "polyline": [[10, 2], [10, 3]]}],
+        "start_areas": [{"name": "crowd", "polygon": [[1, 1], [6, 1], [6, 4], [1, 4]],
+                         "count": 20}]}))
+    return path
+
+
+def _summary(folder):
+    try:
+        return json.loads((folder / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _assert_csv_agrees_with_summaries(out, *, statuses=FINISHED):
+    """Every row of ensemble.csv says what its member's summary.json says."""
+    from pedmesh.run.output import run_status
+
+    df = pd.read_csv(out / "ensemble.csv", dtype={"member": str}, keep_default_na=False)
+    for row in df.to_dict("records"):
+        folder = out / "members" / row["member"]
+        s = _summary(folder)
+        assert s is not None, f"member {row['member']}: no summary.json"
+        assert run_status(folder, s) in statuses, (row["member"], s.get("status"))
+        for key in FROM_SUMMARY:
+            assert row[key] == pytest.approx(s[key]) if isinstance(s[key], float) \
+                else row[key] == s[key], (row["member"], key, row[key], s[key])
+    return df
+
+
+def _tasks(room, out, members, t_end=30.0, overrides=None):
+    """The tasks ensemble() sends to its workers, by hand (as benchmarks/ensemble.py does)."""
+    from pedmesh.ensembles import _plan
+    from pedmesh.io import load_room
+    from pedmesh.mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE
+    from pedmesh.presets import resolve_preset
+
+    preset = resolve_preset(None, load_room(room))
+    mesh_options = {"max_area": MAX_AREA, "min_angle": MIN_ANGLE,
+                    "feature_area": FEATURE_AREA, "exit_size": None}
+    plan = _plan(str(room), "sfm", members, out, overrides=dict(overrides or {}), sweep={},
+                 seed=0, t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=True)
+    return [{"member": m.member, "point": m.point, "seed": m.seed, "values": {},
+             "geometry": str(room.resolve()), "model": "sfm", "overrides": m.overrides,
+             "t_end": t_end, "out_dir": str(m.out_dir.resolve()), "mesh_options": mesh_options,
+             "preset": preset, "max_cells": None, "model_options": {"seed": m.seed}}
+            for m in plan]
+
+
+def test_killed_worker_loses_no_finished_member(room_b, tmp_path):
+    """Issue 36, item 1: SIGKILL a worker that finished a member and now runs another.
+    Its finished member is neither cleared nor recomputed, the killed member is run again,
+    and ensemble.csv agrees with every member's summary."""
+    import os
+    import re
+    import signal
+    from pathlib import Path
+
+    import pedmesh
+
+    out = tmp_path / "ens"
+    members = out / "members"
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(pedmesh.__file__).parents[1]),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pedmesh", "ensemble", str(room_b), "--members", "3",
+         "--workers", "2", "--param", "dt=0.0005", "--t-end", "60", "--out", str(out), "-q"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    victim = before = None
+    try:
+        deadline = time.time() + 240
+        while victim is None and proc.poll() is None and time.time() < deadline:
+            seen = {d.name: s for d in (members.iterdir() if members.is_dir() else ())
+                    if (s := _summary(d)) is not None}
+            running = {s.get("pid") for s in seen.values() if s.get("status") == "running"}
+            for name, s in seen.items():
+                if re.fullmatch(r"\d{3}-\d{4}", name) and s.get("status") in FINISHED \
+                        and s.get("pid") in running:
+                    victim = name
+                    before = (members / name / "summary.json").read_bytes()
+                    os.kill(s["pid"], signal.SIGKILL)  # the worker, mid-way through another
+                    break
+            time.sleep(0.02)
+        stdout, stderr = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert victim is not None, "never saw a worker start a member after finishing one"
+    assert proc.returncode == 0, stderr
+    assert "3 of 3 members finished, 0 failed" in stdout
+    df = _assert_csv_agrees_with_summaries(out, statuses=("finished",))
+    assert list(df["member"]) == ["000-0000", "000-0001", "000-0002"]
+    assert (members / victim / "summary.json").read_bytes() == before  # never recomputed
+    assert sorted(p.name for p in members.iterdir()) == list(df["member"])  # no temp folders
+
+
+def test_recompute_of_a_finished_member_returns_its_summary(room_b, tmp_path):
+    """What Dask does when a worker holding a finished member's result dies: it runs the
+    task again. The member's folder is then left alone and its summary returned."""
+    from pedmesh.ensembles import run_member
+
+    task = _tasks(room_b, tmp_path / "ens", 1)[0]
+    first = run_member(task)
+    assert first["status"] == "finished", first
+    folder = tmp_path / "ens" / "members" / "000-0000"
+    stamps = {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+    summary = _summary(folder)
+    again = run_member(task)
+    assert {p.name: p.stat().st_mtime_ns for p in folder.iterdir()} == stamps
+    for key in FROM_SUMMARY:
+        assert again[key] == summary[key] == first[key], key
+
+
+def test_member_cut_off_midway_never_takes_its_place(room_b, tmp_path, client, monkeypatch):
+    """A member that stops after writing part of its output (a fault injected into its
+    writer) leaves no cut-off run under its name; the next ensemble runs it again."""
+    from pedmesh.ensembles import run_member
+    from pedmesh.run.output import RunWriter
+
+    out = tmp_path / "ens"
+    task = _tasks(room_b, out, 1)[0]
+    real, calls = RunWriter.sample, []
+
+    def dies(self, t, evacuated):
+        real(self, t, evacuated)
+        calls.append(t)
+        if len(calls) == 20:
+            raise KeyboardInterrupt  # as a signal would, after 2 s of output
+    monkeypatch.setattr(RunWriter, "sample", dies)
+    row = run_member(task)
+    monkeypatch.undo()
+    assert row["status"] != "finished" and len(calls) == 20
+    assert not (out / "members" / "000-0000").exists()
+    assert list((out / "members").iterdir()) == []  # nor its temporary folder
+
+    df = ensemble(room_b, "sfm", 1, out, client=client, quiet=True, t_end=30.0)
+    assert list(df["status"]) == ["finished"]
+    _assert_csv_agrees_with_summaries(out)
+    assert [p.name for p in (out / "members").iterdir()] == ["000-0000"]
+
+
+def test_failed_member_is_in_place_with_its_error_and_rerun(room_b, tmp_path, client,
+                                                            monkeypatch):
+    """A member whose run fails midway (here: its writer fails) is recorded as failed, its
+    folder says so with the error, ensemble.csv agrees; the next ensemble runs it again."""
+    from pedmesh.ensembles import run_member
+    from pedmesh.run.output import RunWriter
+
+    out = tmp_path / "ens"
+    task = _tasks(room_b, out, 1)[0]
+    real, calls = RunWriter.sample, []
+
+    def fails(self, t, evacuated):
+        real(self, t, evacuated)
+        calls.append(t)
+        if len(calls) == 20:
+            raise OSError(28, "No space left on device", "evacuation.csv")
+    monkeypatch.setattr(RunWriter, "sample", fails)
+    row = run_member(task)
+    monkeypatch.undo()
+    folder = out / "members" / "000-0000"
+    s = _summary(folder)
+    assert row["status"] == s["status"] == "failed"
+    assert "No space left on device" in s["error"] and row["error"] == s["error"]
+    assert [p.name for p in (out / "members").iterdir()] == ["000-0000"]
+
+    df = ensemble(room_b, "sfm", 1, out, client=client, quiet=True, t_end=30.0)
+    assert list(df["status"]) == ["finished"]
+    _assert_csv_agrees_with_summaries(out)
+
+
+def test_interrupted_ensemble_takes_statuses_from_the_summaries(room_b, tmp_path, client,
+                                                                monkeypatch):
+    """Issue 36, item 12: Ctrl-C while a member has finished on its worker but is not yet
+    collected; ensemble.csv still says `finished` for it, as its summary does."""
+    import pedmesh.ensembles as ens
+
+    out = tmp_path / "ens"
+    real = ens._write_csv
+    state = {"raised": False}
+
+    def interrupted(path, frame):
+        real(path, frame)
+        if not state["raised"] and frame["status"].isin(FINISHED).sum() == 1:
+            state["raised"] = True
+            deadline = time.time() + 120
+            while time.time() < deadline and not all(
+                    (_summary(out / "members" / m) or {}).get("status") in FINISHED
+                    for m in ("000-0000", "000-0001")):
+                time.sleep(0.05)
+            raise KeyboardInterrupt
+    monkeypatch.setattr(ens, "_write_csv", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        ensemble(room_b, "sfm", 2, out, client=client, quiet=True, t_end=30.0)
+    assert state["raised"]
+    df = _assert_csv_agrees_with_summaries(out)
+    assert list(df["status"]) == ["finished", "finished"]
+
+
+def test_out_must_be_empty_or_a_pedmesh_ensemble(room_b, tmp_path, capsys):
+    """Issue 36, item 5: --out has the ownership check of `pedmesh run --out`."""
+    room = str(room_b)
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("my notes\n")
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "ensemble.csv").write_text("a,b\n1,2\n")
+    a_run = tmp_path / "a-run"
+    assert main(["run", room, "--out", str(a_run), "-q", "--t-end", "1"]) == 0
+    capsys.readouterr()
+    for folder in (mine, theirs, a_run):
+        listing = sorted(p.name for p in folder.iterdir())
+        assert main(["ensemble", room, "--members", "1", "--out", str(folder), "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and str(folder) in err[0] and "not a pedmesh ensemble" in err[0], err
+        assert sorted(p.name for p in folder.iterdir()) == listing  # nothing written
+    assert (theirs / "ensemble.csv").read_text() == "a,b\n1,2\n"
+
+
+def test_out_of_an_ensemble_keeps_other_files_and_refuses_a_second_writer(room_b, tmp_path,
+                                                                         client, capsys):
+    import fcntl
+
+    out = tmp_path / "ens"
+    ensemble(room_b, "sfm", 1, out, client=client, quiet=True, t_end=5.0)
+    (out / "notes.txt").write_text("my notes\n")
+    df = ensemble(room_b, "sfm", 2, out, client=client, quiet=True, t_end=5.0)
+    assert len(df) == 2 and (out / "notes.txt").read_text() == "my notes\n"
+    with open(out / ".lock", "a+") as lock:  # another ensemble is writing into it
+        fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert main(["ensemble", str(room_b), "--members", "2", "--out", str(out), "-q",
+                     "--t-end", "5"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(out) in err[0] and "another" in err[0], err
+
+
+def test_bad_scheduler_address_is_one_line(room_b, tmp_path, capsys):
+    """Issue 36, item 10: not an internal error."""
+    for address in ("notanaddress", "tcp://host", "foo://host:1", "tcp://host:port"):
+        assert main(["ensemble", str(room_b), "--members", "1", "--scheduler", address,
+                     "--out", str(tmp_path / "x"), "-q"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and address in err[0] and "internal" not in err[0], err
+        assert not (tmp_path / "x").exists()
+
+
+def test_unknown_parameter_is_refused_before_any_cluster(room_b, tmp_path, capsys,
+                                                         monkeypatch):
+    """Issue 36, item 10: sweep and --param names are checked against the model's declared
+    parameters before a cluster starts (here, starting one fails the test)."""
+    import distributed
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a cluster was started")
+    monkeypatch.setattr(distributed, "LocalCluster", no_cluster)
+    monkeypatch.setattr(distributed, "Client", no_cluster)
+    for args, name in ((["--sweep", "foo=1,2"], "foo"), (["--param", "bar=1"], "bar"),
+                       (["--model", "eos", "--sweep", "dt=0.1,0.2"], "dt")):
+        assert main(["ensemble", str(room_b), "--members", "1", "--out",
+                     str(tmp_path / "x"), "-q", *args]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"unknown parameter '{name}'" in err[0], err
+        assert not (tmp_path / "x").exists()
+
+
+def test_rerun_repairs_what_a_killed_ensemble_left(room_b, tmp_path, client, capsys):
+    """A member folder with a cut-off run (summary `running`, its process gone: what issue
+    36's worker kill left behind) is run again, a killed attempt's temporary folder is
+    removed, and a file of the user's in a folder that must be cleared stops the ensemble
+    in one line, before that folder is touched."""
+    out = tmp_path / "ens"
+    ensemble(room_b, "sfm", 2, out, client=client, quiet=True, t_end=30.0)
+    cut = out / "members" / "000-0001"
+    s = _summary(cut)
+    s.update(status="running", pid=2 ** 22 + 12345, n_evacuated=3)  # no such process
+    (cut / "summary.json").write_text(json.dumps(s))
+    scratch = out / "members" / "000-0000.tmp-999-1"
+    scratch.mkdir()
+    (scratch / ".lock").touch()
+    (scratch / "summary.json").write_text("{}")
+    finished = (out / "members" / "000-0000" / "summary.json").read_bytes()
+
+    (cut / "my-notes.txt").write_text("mine\n")
+    assert main(["ensemble", str(room_b), "--members", "2", "--out", str(out), "-q",
+                 "--t-end", "30"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "my-notes.txt" in err[0], err
+    assert (cut / "my-notes.txt").exists() and _summary(cut)["status"] == "running"
+
+    (cut / "my-notes.txt").unlink()
+    df = ensemble(room_b, "sfm", 2, out, client=client, quiet=True, t_end=30.0)
+    assert list(df["status"]) == ["finished", "finished"]
+    _assert_csv_agrees_with_summaries(out)
+    assert (out / "members" / "000-0000" / "summary.json").read_bytes() == finished
+    assert sorted(p.name for p in (out / "members").iterdir()) == ["000-0000", "000-0001"]

@@ -25,9 +25,17 @@ Writes into DIR as members finish:
                              deviation of T50, T90, T100
   evacuation_bands.png       median evacuation curve with its 5-95 % band per point
 
+DIR must be empty, new, or an earlier pedmesh ensemble (other files in it are left alone);
+a second ensemble into the same DIR is refused while one runs. A member runs in a
+temporary folder (members/<id>.tmp-...) that becomes members/<id>/ when its run has ended,
+so a member's folder never holds a cut-off run, and a finished member is never run over
+(not even when Dask recomputes it after a worker died). ensemble.csv takes each member's
+status, counts and times from the member's own summary.json.
+
 Running the same command again skips finished members; a member folder made with other
-settings is an error. A failed member is recorded and the others go on; Ctrl-C keeps
-every finished member.
+settings is an error. --param and --sweep names are checked against the model's
+parameters before any cluster starts. A failed member is recorded and the others go on;
+Ctrl-C keeps every finished member.
 
 examples:
   pedmesh ensemble geometries/l_shaped.json --members 20 --out runs/lshape-ens
