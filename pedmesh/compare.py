@@ -24,7 +24,7 @@ from .analysis import (
     evacuation_times_from_curve,
     reference_flow,
 )
-from .errors import ParameterError
+from .errors import ParameterError, PedmeshError
 from .parameters import DEFAULT_T_END_S
 from .run.results import RunResult
 
@@ -158,8 +158,12 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
                               geometry=geometry, mesh_options=mesh_options, preset=preset)
         why = "no run there yet"
         if (d / "summary.json").exists():
-            res = RunResult.load(d)
-            why = _settings_difference(res, wanted) if reuse else "reuse is off"
+            try:
+                res = RunResult.load(d)
+            except PedmeshError as exc:  # a broken summary: run it again
+                res, why = None, f"its summary is broken: {exc}"
+            else:
+                why = _settings_difference(res, wanted) if reuse else "reuse is off"
             if why is None:
                 if not quiet:
                     print(f"{prefix}: reusing the finished run in {d}", file=sys.stderr)

@@ -405,13 +405,18 @@ def parse_overrides(items: Iterable[str] | None) -> dict[str, float | str]:
     """``["A=1500", "exit=transmissive"]`` -> ``{"A": 1500.0, "exit": "transmissive"}``,
     with clear errors: numbers must be finite; switches take 0/1/false/true (read as
     0.0/1.0); text parameters keep their words. Names not declared are read as numbers
-    (the model then says they are unknown)."""
+    (the model then says they are unknown). A name given twice is refused."""
     out: dict[str, float | str] = {}
+    seen: dict[str, str] = {}
     for item in items or []:
         if "=" not in item:
             raise ParameterError(f"--param expects NAME=VALUE, got '{item}'")
         name, _, value = item.partition("=")
         name = name.strip()
+        if name in seen:  # refused rather than the last one silently winning
+            raise ParameterError(f"parameter '{name}' is given twice ('{seen[name]}' and "
+                                 f"'{item}'); give it once")
+        seen[name] = item
         p = PARAMETERS.get(name)
         out[name] = _parse(name, value, p.kind if p is not None else "real")
     return out

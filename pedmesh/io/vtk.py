@@ -6,10 +6,15 @@ time-series collections.
 can draw them as glyphs. pyvista reads PVD but does not write it, so the small PVD writer
 is ours; it rewrites the index after every frame, so an interrupted run leaves a valid
 collection of the frames written so far.
+
+Every file is written to a temporary ``.part`` file first and renamed when complete; a
+write that fails (a full disk) removes its ``.part`` file and raises :class:`OSError`
+naming the file.
 """
 
 from __future__ import annotations
 
+import errno
 import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -80,8 +85,12 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
     m = mesh_to_meshio(mesh, point_data, cell_data, boundary=boundary)
     path = Path(path)
     tmp = path.with_name(path.name + ".part")
-    m.write(tmp, file_format="vtu")
-    os.replace(tmp, path)
+    try:
+        m.write(tmp, file_format="vtu")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -142,10 +151,36 @@ def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayM
     w.SetDataModeToAppended()
     w.EncodeAppendedDataOff()
     w.SetCompressor(vtkLZ4DataCompressor())
-    if not w.Write():
-        raise OSError(f"could not write {path}")
-    os.replace(tmp, path)
+    try:
+        _vtk_write(w, path)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
+
+
+def _vtk_write(writer, path: Path) -> None:
+    """Run a VTK writer without VTK's messages on the console; a failure is an OSError
+    naming ``path`` (ENOSPC when VTK says the disk is full)."""
+    from vtkmodules.vtkCommonCore import vtkObject
+    from vtkmodules.vtkCommonMisc import vtkErrorCode
+
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()
+    try:
+        ok = writer.Write()
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
+    code = writer.GetErrorCode()
+    if ok and code == vtkErrorCode.NoError:
+        return
+    if code == vtkErrorCode.OutOfDiskSpaceError:
+        raise OSError(errno.ENOSPC, "out of disk space (or over the file size limit)",
+                      str(path))
+    raise OSError(errno.EIO, f"VTK could not write it "
+                  f"({vtkErrorCode.GetStringFromErrorCode(code) or 'unknown error'})",
+                  str(path))
 
 
 def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None) -> Path:
@@ -171,8 +206,21 @@ def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None)
             cloud.GetPointData().AddArray(arr)
     path = Path(path)
     tmp = path.with_name(path.stem + ".part.vtp")
-    cloud.save(tmp, binary=True)
-    os.replace(tmp, path)
+    # VTK's XML writer as pyvista's save(binary=True) sets it up (the same bytes), run
+    # here so that a failed write is seen (pyvista's save only checks that a file exists)
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
+
+    w = vtkXMLPolyDataWriter()
+    w.SetFileName(str(tmp))
+    w.SetInputData(cloud)
+    w.SetDataModeToBinary()
+    w.SetCompressorTypeToZLib()
+    try:
+        _vtk_write(w, path)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
@@ -248,8 +296,12 @@ class PVDWriter:
                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
                 "  <Collection>\n" + "".join(self._lines) + "  </Collection>\n</VTKFile>\n")
         tmp = self.path.with_name(self.path.name + ".part")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, self.path)
+        try:
+            tmp.write_text(text, encoding="utf-8")
+            os.replace(tmp, self.path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
 
     def close(self) -> None:
         self._write_index()

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import MeshError
 
-__all__ = ["BoundaryKind", "TriMesh"]
+__all__ = ["BoundaryKind", "TriMesh", "room_fingerprint"]
 
 
 class BoundaryKind(enum.IntEnum):
@@ -36,6 +36,35 @@ class BoundaryKind(enum.IntEnum):
     WALL = 1  #: the room outline
     OBSTACLE = 2  #: an obstacle's boundary
     EXIT = 3  #: an exit (open boundary)
+
+
+def room_fingerprint(room) -> str:
+    """SHA-256 (hex) of what a mesh of ``room`` depends on: its boundary rings (walls and
+    obstacles, with the exits' vertices inserted), the exits as they lie on them, and the
+    exit and obstacle names. Start areas and measurement elements do not count: one mesh
+    serves a room with another crowd. Kept in the mesh (:attr:`TriMesh.room_fingerprint`)
+    and checked when a room is run on a mesh."""
+    import hashlib
+
+    cache = getattr(room, "_cache", None)
+    if isinstance(cache, dict) and "mesh_fingerprint" in cache:
+        return cache["mesh_fingerprint"]
+    h = hashlib.sha256()
+
+    def add(label: str, arr) -> None:
+        a = np.ascontiguousarray(np.asarray(arr, np.float64))
+        h.update(f"{label}{a.shape}".encode())
+        h.update(a.tobytes())
+
+    for ring in room.boundary_rings:
+        add(f"ring {ring.owner} {tuple(ring.exits)}", ring.points)
+    for k in range(len(room.exits)):
+        add(f"exit {k}", room.exit_polyline(k))
+    h.update(repr((tuple(room.exit_names), tuple(room.obstacle_names))).encode())
+    fp = h.hexdigest()
+    if isinstance(cache, dict):
+        cache["mesh_fingerprint"] = fp
+    return fp
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +87,9 @@ class TriMesh:
         Names of the exits / obstacles, indexed by the owner numbers.
     room
         The :class:`~pedmesh.geometry.Room` the mesh was made from, if any.
+    room_fingerprint
+        :func:`room_fingerprint` of that room (computed from ``room`` if not given):
+        running a room on a mesh checks that they match.
     """
 
     points: np.ndarray
@@ -68,6 +100,7 @@ class TriMesh:
     exit_names: tuple[str, ...] = ()
     obstacle_names: tuple[str, ...] = ()
     room: Any = field(default=None, repr=False)
+    room_fingerprint: str | None = field(default=None, repr=False)
     _cache: dict = field(default_factory=dict, init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -104,6 +137,9 @@ class TriMesh:
         object.__setattr__(self, "segment_owner", owner)
         object.__setattr__(self, "exit_names", tuple(self.exit_names))
         object.__setattr__(self, "obstacle_names", tuple(self.obstacle_names))
+        if self.room_fingerprint is None and self.room is not None \
+                and hasattr(self.room, "boundary_rings"):
+            object.__setattr__(self, "room_fingerprint", room_fingerprint(self.room))
 
     # ------------------------------------------------------------------ sizes
     @property

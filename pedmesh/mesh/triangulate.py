@@ -18,7 +18,7 @@ from shapely.geometry import Point
 
 from ..errors import MeshError
 from ..geometry.tolerances import EXIT_TOLERANCE
-from .triangle_mesh import BoundaryKind, TriMesh
+from .triangle_mesh import BoundaryKind, TriMesh, room_fingerprint
 
 __all__ = ["triangulate", "exit_size_field", "feature_size_field", "size_fields", "estimate_cells",
            "check_max_cells", "MAX_CELLS", "MAX_AREA", "FEATURE_AREA", "MIN_ANGLE"]
@@ -377,4 +377,5 @@ def triangulate(
         exit_names=room.exit_names,
         obstacle_names=room.obstacle_names,
         room=room,
+        room_fingerprint=room_fingerprint(room),
     )

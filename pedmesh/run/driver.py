@@ -21,8 +21,8 @@ from .output import RunWriter, _clean, file_sha256
 from ..models.protocol import RunModel
 
 __all__ = ["run_model", "build_model", "plan_run", "execute", "RunPlan", "run_settings",
-           "resolve_parameters", "check_options", "RunInterrupted", "request_stop",
-           "stop_requested", "stop_on_signals"]
+           "resolve_parameters", "check_options", "check_room_mesh", "RunInterrupted",
+           "request_stop", "stop_requested", "stop_on_signals"]
 
 
 class RunInterrupted(Exception):
@@ -78,6 +78,35 @@ def check_options(entry: ModelEntry, options: Mapping[str, Any]) -> None:
                                 if entry.options else ""))
 
 
+def check_room_mesh(room, mesh) -> None:
+    """A one-line :class:`~pedmesh.errors.ParameterError` unless ``mesh`` is a mesh of
+    ``room``: the room's fingerprint (:func:`pedmesh.mesh.triangle_mesh.room_fingerprint`)
+    must be the one kept in the mesh; a mesh made without a room must have the room's
+    exits and walkable area."""
+    if room is None or not hasattr(room, "boundary_rings"):
+        return
+    from ..mesh.triangle_mesh import room_fingerprint
+
+    have = getattr(mesh, "room_fingerprint", None)
+    made_of = getattr(getattr(mesh, "room", None), "name", None)
+    if have is not None:
+        if have != room_fingerprint(room):
+            of = f"room '{made_of}'" if made_of is not None else "another room"
+            raise ParameterError(f"the mesh was made from {of}, not from room '{room.name}' "
+                                 "(their walls, obstacles or exits differ); triangulate "
+                                 "this room for it")
+        return
+    if tuple(getattr(mesh, "exit_names", ())) != tuple(room.exit_names):
+        raise ParameterError(f"the mesh's exits {list(mesh.exit_names)} are not those of "
+                             f"room '{room.name}' {list(room.exit_names)}; triangulate this "
+                             "room for it")
+    areas = getattr(mesh, "areas", None)
+    if areas is not None and not math.isclose(float(np.sum(areas)), room.area, rel_tol=1e-6):
+        raise ParameterError(f"the mesh covers {float(np.sum(areas)):.6g} m^2, room "
+                             f"'{room.name}' {room.area:.6g} m^2: not a mesh of this room; "
+                             "triangulate this room for it")
+
+
 def build_model(room, mesh, model: str, *, preset: str | None = None,
                 overrides: Mapping[str, Any] | None = None, **options: Any) -> RunModel:
     """The stepping form: model ``model`` built on ``mesh`` with its preset's parameters and
@@ -85,6 +114,7 @@ def build_model(room, mesh, model: str, *, preset: str | None = None,
     is written. ``options``: the model options its registry entry lists (e.g. ``seed``)."""
     entry = get_model(model)
     check_options(entry, options)
+    check_room_mesh(room, mesh)
     _, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)
     run = entry.build(room, mesh, parameters, **options)
     if not isinstance(run, RunModel):
@@ -140,6 +170,7 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
     if not (math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a positive number of seconds, got {t_end!r}")
     entry = get_model(model)
+    check_room_mesh(room, mesh)
     overrides = dict(overrides or {})
     # the settings record the preset's name and the overrides
     preset, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)

@@ -6,6 +6,7 @@ the result they make (:class:`MemoryResult`, with the fields of
 from __future__ import annotations
 
 import copy
+import csv
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -26,7 +27,8 @@ class MemoryWriter:
         self.exit_names = list(exit_names)
         self.evacuation: list[tuple[float, float]] = []
         self.outflow_rows: list[tuple[float, list[float]]] = []
-        self.tables: dict[str, tuple[str, list[str]]] = {}
+        #: name -> (header, rows as lists of fields) of the tables a model appends to
+        self.tables: dict[str, tuple[Any, list[list]]] = {}
         #: (t [s], point data, cell data) of each density frame
         self.density: list[tuple[float, dict, dict]] = []
         #: (t [s], positions (n, 2) [m], data) of each pedestrian frame
@@ -46,8 +48,11 @@ class MemoryWriter:
     def outflow(self, t: float, flows: Sequence[float]) -> None:
         self.outflow_rows.append((float(t), [float(f) for f in flows]))
 
-    def append_rows(self, name: str, header: str, rows: Sequence[str]) -> None:
-        self.tables.setdefault(name, (header, []))[1].extend(rows)
+    def append_rows(self, name: str, header: Sequence[str] | str,
+                    rows: Sequence[Sequence[Any] | str]) -> None:
+        """Keep rows of a table (fields, or a CSV line as a string)."""
+        self.tables.setdefault(name, (header, []))[1].extend(
+            next(csv.reader([r])) if isinstance(r, str) else list(r) for r in rows)
 
     def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
         self.density.append((float(t), copy.deepcopy(dict(point_data or {})),
@@ -87,7 +92,7 @@ class MemoryWriter:
         return MemoryResult(
             summary=self.summary, evacuation=(ev[:, 0], ev[:, 1]),
             outflow=(t_out, flows, list(self.exit_names)),
-            exit_times=np.array([float(r.split(",")[2]) for r in exits if r]),
+            exit_times=np.array([float(r[2]) for r in exits if r], float),
             density=self.density, pedestrians=self.pedestrians, trajectories=traj,
             frame_rate=self.frame_rate)
 

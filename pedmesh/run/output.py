@@ -10,16 +10,29 @@ the directory.
 
 A run owns its directory: it refuses a non-empty directory that is not a pedmesh run,
 holds a lock while it runs (a second run into the same directory is an error), and starts
-clean, removing the files of an earlier pedmesh run there.
+clean, removing the files of an earlier pedmesh run there, by their exact names
+(:data:`RUN_FILES`); every other file stays. A folder whose ``summary.json`` is broken
+(truncated, not a JSON object, wrong-typed fields) counts as an earlier pedmesh run only
+if everything else in it is pedmesh's; otherwise it is refused, naming the file.
+
+Writing never leaves a half-done state unsaid: a failed write (a full disk, ...) raises
+:class:`OutputWriteError` naming the file, the run's temporary files (``*.part``) are
+removed and the summary says ``failed`` with the error. While a run writes, ``.lock``
+holds a small reserve of disk space (:data:`RESERVE_BYTES`) that is given back to write
+the final summary when the disk is full.
 """
 
 from __future__ import annotations
 
-import fnmatch
+import csv
+import errno
 import hashlib
+import io
 import json
 import math
+import numbers
 import os
+import re
 import shutil
 import sqlite3
 from pathlib import Path
@@ -56,19 +69,73 @@ try:  # POSIX advisory locks; elsewhere the process id in summary.json is checke
 except ImportError:  # pragma: no cover - not POSIX
     fcntl = None
 
-__all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "evacuation_times",
-           "evacuation_times_from_curve", "file_sha256", "run_status", "RUN_FILES"]
+__all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "BrokenSummaryError",
+           "OutputWriteError", "evacuation_times", "evacuation_times_from_curve",
+           "file_sha256", "run_status", "read_summary", "load_summary", "summary_problem",
+           "RUN_FILES", "TEMP_FILES", "STATUSES", "RESERVE_BYTES"]
 
-#: names (glob patterns) of everything a run writes into its directory
+#: pedmesh's own temporary files in a run folder (exact names); the frames' temporary
+#: files (``density_000012.part.vtu``) are inside ``density/`` and ``pedestrians/``
+TEMP_FILES = ("summary.json.part", "density.pvd.part", "pedestrians.pvd.part",
+              "trajectories.sqlite-journal")
+#: the exact names of everything a run writes into its directory: a rerun removes these
+#: and nothing else
 RUN_FILES = ("summary.json", "evacuation.csv", "outflow.csv", "outflow_kernel.csv",
              "exits.csv", "density.pvd", "density", "pedestrians.pvd", "pedestrians",
-             "trajectories.txt", "trajectories.sqlite", "trajectories.sqlite-journal",
-             ".lock", "*.part")
+             "trajectories.txt", "trajectories.sqlite", ".lock") + TEMP_FILES
 LOCK = ".lock"
+#: a frame's temporary file in density/ or pedestrians/ (see pedmesh.io.vtk)
+_FRAME_TEMP = re.compile(r"(density|pedestrians)_\d{6,}\.part\.(vtu|vtp)")
+#: [bytes] disk space held in .lock while a run writes, given back to write the final
+#: summary on a full disk
+RESERVE_BYTES = 64 * 1024
+#: every status a summary can have
+STATUSES = ("running", "finished", "stopped at t_end", "interrupted", "failed")
 
 
 class RunFolderError(PedmeshError):
     """The output directory cannot be used for this run (not a run, or in use)."""
+
+
+class BrokenSummaryError(RunFolderError):
+    """A run folder's summary.json cannot be read as a pedmesh summary (truncated, not a
+    JSON object, wrong-typed fields); the message names the file."""
+
+
+class OutputWriteError(PedmeshError, OSError):
+    """Writing a run's output failed (a full disk, a file size limit, ...). An
+    :class:`OSError` too, with ``errno`` (``ENOSPC`` on a full disk), ``strerror`` and
+    ``filename``, the file that could not be written."""
+
+    def __str__(self) -> str:
+        return f"cannot write {self.filename}: {self.strerror}"
+
+
+def _final_name(name: str | os.PathLike) -> str:
+    """The file a temporary file stands for: ``x.part`` -> ``x``, ``x.part.vtu`` ->
+    ``x.vtu``."""
+    p = Path(name)
+    if p.name.endswith(".part"):
+        return str(p.with_name(p.name[:-5]))
+    if ".part." in p.name:
+        return str(p.with_name(p.name.replace(".part.", ".", 1)))
+    return str(name)
+
+
+def _write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteError:
+    """``exc`` (an OSError or an SQLite error) as an :class:`OutputWriteError` naming the
+    file (the error's own file name if it has one, else ``path``)."""
+    if isinstance(exc, OutputWriteError):
+        return exc
+    if isinstance(exc, sqlite3.Error):
+        reason = str(exc) or type(exc).__name__
+        code = errno.ENOSPC if "full" in reason else None
+        name = path
+    else:
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        code = getattr(exc, "errno", None)
+        name = getattr(exc, "filename", None) or path
+    return OutputWriteError(code, reason, _final_name(name))
 
 
 def file_sha256(path: str | Path) -> str:
@@ -91,15 +158,93 @@ def _atomic_write(path: Path, text: str) -> None:
 
 
 def _is_run_file(name: str) -> bool:
-    return any(fnmatch.fnmatchcase(name, pat) for pat in RUN_FILES)
+    return name in RUN_FILES
+
+
+_NUMBER = "a number"
+#: the fields pedmesh reads from a summary and what each must be (None is allowed for
+#: every field but the first three, which must be there)
+_SUMMARY_FIELDS: dict[str, str] = {
+    "pedmesh_version": "text", "model": "text", "status": "text",
+    "settings": "an object", "mesh": "an object", "parameters": "an object",
+    "exits": "an object", "units": "an object", "error": "text", "pid": "a whole number",
+    "t_end": _NUMBER, "t_stop": _NUMBER, "n_initial": _NUMBER, "n_evacuated": _NUMBER,
+    "t_evac_50": _NUMBER, "t_evac_90": _NUMBER, "t_evac_100": _NUMBER, "steps": _NUMBER,
+    "frames": _NUMBER, "wall_time_s": _NUMBER, "dt": _NUMBER,
+}
+_REQUIRED = ("pedmesh_version", "model", "status")
+
+
+def _is_kind(value: Any, kind: str) -> bool:
+    if kind == "text":
+        return isinstance(value, str)
+    if kind == "an object":
+        return isinstance(value, dict)
+    if isinstance(value, bool):
+        return False
+    if kind == "a whole number":
+        return isinstance(value, int)
+    return isinstance(value, numbers.Real)
+
+
+def _json_kind(value: Any) -> str:
+    return {dict: "an object", list: "a list", str: "text", bool: "true/false",
+            type(None): "null"}.get(type(value), "a number")
+
+
+def summary_problem(data: Any) -> str | None:
+    """What is wrong with ``data`` as a pedmesh summary (None if nothing)."""
+    if not isinstance(data, dict):
+        kind = {list: "list", str: "string", bool: "true/false", type(None): "null"}.get(
+            type(data), "number")
+        return f"a JSON {kind}, not an object"
+    for key in _REQUIRED:
+        if key not in data:
+            return f"no '{key}'"
+    for key, kind in _SUMMARY_FIELDS.items():
+        value = data.get(key)
+        if value is None and key not in _REQUIRED:
+            continue
+        if not _is_kind(value, kind):
+            return f"'{key}' is {_json_kind(value)}, not {kind}"
+    if data["status"] not in STATUSES:
+        return f"unknown status {data['status']!r}"
+    return None
+
+
+def read_summary(d: str | Path) -> tuple[dict | None, str | None]:
+    """(summary, None) for a run folder with a good ``summary.json``, (None, what is wrong)
+    for a broken one, (None, None) where there is none."""
+    path = Path(d) / "summary.json"
+    if not path.exists():
+        return None, None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        return None, "not UTF-8 text"
+    except json.JSONDecodeError as exc:
+        return None, f"not valid JSON, truncated? {exc.msg}: line {exc.lineno} " \
+                     f"column {exc.colno}"
+    except OSError as exc:
+        return None, f"cannot be read: {exc.strerror or exc}"
+    problem = summary_problem(data)
+    return (None, problem) if problem else (data, None)
+
+
+def load_summary(d: str | Path) -> dict:
+    """The summary of the run in ``d``; :class:`BrokenSummaryError` naming the file if it
+    is broken, :class:`RunFolderError` if there is none."""
+    data, problem = read_summary(d)
+    if problem is not None:
+        raise BrokenSummaryError(f"{Path(d) / 'summary.json'}: not a pedmesh run summary "
+                                 f"({problem})")
+    if data is None:
+        raise RunFolderError(f"{d}: not a run directory (no summary.json)")
+    return data
 
 
 def _read_summary(d: Path) -> dict | None:
-    try:
-        data = json.loads((d / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return data if isinstance(data, dict) and "pedmesh_version" in data else None
+    return read_summary(d)[0]
 
 
 def _lock_is_held(d: Path) -> bool | None:
@@ -147,6 +292,7 @@ def claim_run_dir(out_dir: str | Path):
     if d.exists() and not d.is_dir():
         raise RunFolderError(f"{d}: exists and is not a directory")
     d.mkdir(parents=True, exist_ok=True)
+    had_lock = (d / LOCK).exists()
     lock = open(d / LOCK, "a+")
     if fcntl is not None:
         try:
@@ -157,10 +303,19 @@ def claim_run_dir(out_dir: str | Path):
                                  "wait for it or choose another --out") from None
     try:
         entries = [e for e in d.iterdir() if e.name != LOCK]
-        prev = _read_summary(d)
-        if entries and prev is None:
-            raise RunFolderError(f"{d}: not empty and not a pedmesh run directory; choose "
-                                 "another --out (pedmesh does not write into other files)")
+        prev, problem = read_summary(d)
+        others = sorted(e.name for e in entries if not _is_run_file(e.name))
+        if entries and prev is None and problem is None:
+            raise RunFolderError(f"{d}: not empty and not a pedmesh run directory (it holds "
+                                 f"'{(others or [entries[0].name])[0]}'); choose another "
+                                 "--out (pedmesh does not write into other files)")
+        if problem is not None and (others or not (had_lock or len(entries) > 1)):
+            # a broken summary among other files: not provably pedmesh's
+            what = f"the folder also holds '{others[0]}'" if others else \
+                "nothing else of a pedmesh run is there"
+            raise BrokenSummaryError(f"{d / 'summary.json'}: not a pedmesh run summary "
+                                     f"({problem}) and {what}; choose another --out or "
+                                     "remove the folder")
         if prev is not None and fcntl is None and prev.get("status") == "running" \
                 and prev.get("pid") != os.getpid() and _pid_alive(prev.get("pid")):
             raise RunFolderError(f"{d}: another pedmesh run (process {prev.get('pid')}) is "
@@ -173,6 +328,8 @@ def claim_run_dir(out_dir: str | Path):
                     e.unlink()
     except BaseException:
         lock.close()
+        if not had_lock:  # a refused folder keeps nothing of ours
+            (d / LOCK).unlink(missing_ok=True)
         raise
     return lock
 
@@ -193,18 +350,27 @@ def _clean(obj: Any) -> Any:
     return obj
 
 
+def _csv_line(fields: Sequence[Any]) -> str:
+    """One CSV line (the csv module's quoting: a name with a comma, a quote or a newline is
+    quoted)."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(fields)
+    return buf.getvalue()
+
+
 class RunWriter:
     """Incremental writer of one run's output directory (see module docstring).
 
     Creating it claims the directory (:func:`claim_run_dir`) and writes ``summary.json``
     with status ``running``; :meth:`finish` closes every file, writes the final summary and
-    releases the lock.
+    releases the lock. A write that fails raises :class:`OutputWriteError` naming the file.
     """
 
     def __init__(self, out_dir: str | Path, header: Mapping[str, Any], *,
                  exit_names: Sequence[str] = ()) -> None:
         self.dir = Path(out_dir)
         self._lock = claim_run_dir(self.dir)
+        self._reserve()
         self.header = dict(header)
         self.header.setdefault("pedmesh_version", __version__)
         self.header["pid"] = os.getpid()
@@ -219,8 +385,40 @@ class RunWriter:
         try:
             self._write_summary({**self.header, "status": "running"})
         except BaseException:
+            self._release_reserve()
             self._lock.close()
             raise
+
+    # ------------------------------------------------------------------ disk reserve
+    def _reserve(self) -> None:
+        """Hold :data:`RESERVE_BYTES` of disk space in .lock (best effort)."""
+        try:
+            fd = self._lock.fileno()
+            if hasattr(os, "posix_fallocate"):
+                os.posix_fallocate(fd, 0, RESERVE_BYTES)
+            elif os.fstat(fd).st_size < RESERVE_BYTES:
+                os.pwrite(fd, bytes(RESERVE_BYTES), 0)
+        except (OSError, AttributeError):  # a full disk already, or no such call
+            pass
+
+    def _release_reserve(self) -> None:
+        try:
+            self._lock.truncate(0)
+        except (OSError, ValueError):
+            pass
+
+    def _remove_temporaries(self) -> None:
+        """Remove pedmesh's own ``.part`` files, by their exact names (a failed write's
+        leftovers; this frees their space too). SQLite's journal is SQLite's to remove."""
+        for name in TEMP_FILES:
+            if name.endswith(".part"):
+                (self.dir / name).unlink(missing_ok=True)
+        for sub in ("density", "pedestrians"):
+            d = self.dir / sub
+            if d.is_dir():
+                for e in d.iterdir():
+                    if _FRAME_TEMP.fullmatch(e.name):
+                        e.unlink(missing_ok=True)
 
     def start(self, header: Mapping[str, Any] | None = None) -> None:
         """Open the time series (after the model was built); ``header`` adds to the
@@ -228,52 +426,82 @@ class RunWriter:
         if header:
             self.header.update(header)
             self._write_summary({**self.header, "status": "running"})
-        self._evac = open(self.dir / "evacuation.csv", "w", encoding="utf-8")
-        self._evac.write("t,evacuated\n")
-        self._evac.flush()
-        self._outflow = open(self.dir / "outflow.csv", "w", encoding="utf-8")
-        self._outflow.write("t," + ",".join(self.exit_names) + "\n")
-        self._outflow.flush()
+        self._evac = self._open("evacuation.csv", "t,evacuated\n")
+        self._outflow = self._open("outflow.csv", _csv_line(["t", *self.exit_names]))
 
     # ------------------------------------------------------------------ pieces
+    def _open(self, name: str, header: str):
+        """Open one of the run's text files for writing, with its header written."""
+        path = self.dir / name
+        try:
+            f = open(path, "w", encoding="utf-8", newline="")
+            try:
+                f.write(header)
+                f.flush()
+            except BaseException:
+                f.close()
+                raise
+        except OSError as exc:
+            raise _write_error(path, exc) from None
+        return f
+
+    @staticmethod
+    def _append(f, text: str) -> None:
+        try:
+            f.write(text)
+            f.flush()
+        except OSError as exc:
+            raise _write_error(f.name, exc) from None
+
     def _write_summary(self, data: Mapping[str, Any]) -> None:
-        _atomic_write(self._summary_path, json.dumps(_clean(data), indent=2) + "\n")
+        try:
+            _atomic_write(self._summary_path, json.dumps(_clean(data), indent=2) + "\n")
+        except OSError as exc:
+            raise _write_error(self._summary_path, exc) from None
 
     def sample(self, t: float, evacuated: float) -> None:
         """Append a row to evacuation.csv."""
         val = f"{int(evacuated)}" if float(evacuated).is_integer() else f"{evacuated:.6g}"
-        self._evac.write(f"{t:.6f},{val}\n")
-        self._evac.flush()
+        self._append(self._evac, f"{t:.6f},{val}\n")
 
     def outflow(self, t: float, flows: Sequence[float]) -> None:
         """Append a row to outflow.csv (flow [ped/s] per exit)."""
         if self._outflow is not None:
-            self._outflow.write(f"{t:.6f}," + ",".join(f"{f:.9g}" for f in flows) + "\n")
-            self._outflow.flush()
+            self._append(self._outflow,
+                         f"{t:.6f}," + ",".join(f"{f:.9g}" for f in flows) + "\n")
 
-    def append_rows(self, name: str, header: str, rows: Sequence[str]) -> None:
-        """Append text rows to a CSV file of the run (created with ``header``)."""
-        path = self.dir / name
+    def append_rows(self, name: str, header: Sequence[str] | str,
+                    rows: Sequence[Sequence[Any] | str]) -> None:
+        """Append rows to a CSV file of the run (created with ``header``). A header or row
+        given as a sequence of fields is written with the csv module (names with a comma,
+        a quote or a newline are quoted); one given as a string is written as it is."""
         if name not in self._extra:
-            self._extra[name] = open(path, "w", encoding="utf-8")
-            self._extra[name].write(header + "\n")
-        f = self._extra[name]
+            self._extra[name] = self._open(
+                name, header + "\n" if isinstance(header, str) else _csv_line(header))
         if rows:
-            f.write("\n".join(rows) + "\n")
-        f.flush()
+            self._append(self._extra[name], "".join(
+                r + "\n" if isinstance(r, str) else _csv_line(r) for r in rows))
 
     def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
         """Add a frame to density.pvd."""
-        if self._density is None:
-            self._density = PVDWriter(self.dir / "density.pvd")
-        self._density.write_mesh(t, mesh, point_data, cell_data)
+        path = self.dir / "density.pvd"
+        try:
+            if self._density is None:
+                self._density = PVDWriter(path)
+            self._density.write_mesh(t, mesh, point_data, cell_data)
+        except OSError as exc:
+            raise _write_error(path, exc) from None
 
     def pedestrian_frame(self, t: float, points: np.ndarray,
                          data: Mapping[str, np.ndarray]) -> None:
         """Add a frame to pedestrians.pvd."""
-        if self._peds is None:
-            self._peds = PVDWriter(self.dir / "pedestrians.pvd")
-        self._peds.write_points(t, points, data)
+        path = self.dir / "pedestrians.pvd"
+        try:
+            if self._peds is None:
+                self._peds = PVDWriter(path)
+            self._peds.write_points(t, points, data)
+        except OSError as exc:
+            raise _write_error(path, exc) from None
 
     def trajectory_frame(self, frame: int, ids: np.ndarray, points: np.ndarray,
                          frame_rate: float, description: str, *,
@@ -286,23 +514,30 @@ class RunWriter:
         ids = np.asarray(ids, np.int64)
         points = np.asarray(points, float).reshape(-1, 2)
         if self._traj is None:
-            self._traj = open(self.dir / "trajectories.txt", "w", encoding="utf-8")
-            self._traj.write(f"# pedmesh {__version__}: {description}\n")
-            self._traj.write(f"# framerate: {frame_rate:g} fps "
-                             "(frame k is at t = k / framerate s)\n")
-            self._traj.write("# unit: x/m, y/m (coordinates in metres)\n")
-            self._traj.write("# id frame x y\n")
-            self._sql_open(frame_rate, walkable_wkt)
+            self._traj = self._open(
+                "trajectories.txt",
+                f"# pedmesh {__version__}: {description}\n"
+                f"# framerate: {frame_rate:g} fps (frame k is at t = k / framerate s)\n"
+                "# unit: x/m, y/m (coordinates in metres)\n"
+                "# id frame x y\n")
+            sql_path = self.dir / "trajectories.sqlite"
+            try:
+                self._sql_open(frame_rate, walkable_wkt)
+            except (OSError, sqlite3.Error) as exc:
+                raise _write_error(sql_path, exc) from None
         lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f}\n" for i, p in zip(ids, points))
-        self._traj.write(lines)
-        self._traj.flush()
+        self._append(self._traj, lines)
         ori = np.zeros_like(points) if orientation is None else np.asarray(orientation, float)
         con = self._sql
-        con.executemany("INSERT INTO trajectory_data VALUES (?, ?, ?, ?, ?, ?)",
-                        zip([frame] * len(ids), ids.tolist(), points[:, 0].tolist(),
-                            points[:, 1].tolist(), ori[:, 0].tolist(), ori[:, 1].tolist()))
-        con.execute("INSERT INTO frame_data VALUES (?, ?)", (frame, self._geo_hash))
-        con.commit()
+        try:
+            con.executemany("INSERT INTO trajectory_data VALUES (?, ?, ?, ?, ?, ?)",
+                            zip([frame] * len(ids), ids.tolist(), points[:, 0].tolist(),
+                                points[:, 1].tolist(), ori[:, 0].tolist(),
+                                ori[:, 1].tolist()))
+            con.execute("INSERT INTO frame_data VALUES (?, ?)", (frame, self._geo_hash))
+            con.commit()
+        except (OSError, sqlite3.Error) as exc:
+            raise _write_error(self.dir / "trajectories.sqlite", exc) from None
 
     def _sql_open(self, frame_rate: float, walkable_wkt: str | None) -> None:
         """Create trajectories.sqlite in JuPedSim's schema (version 2: trajectory_data with
@@ -336,40 +571,52 @@ class RunWriter:
         self._sql = con
 
     def close_files(self) -> None:
-        """Close every open file (idempotent); errors of one do not keep others open."""
+        """Close every open file (idempotent); errors of one do not keep others open. The
+        first error is raised, as an :class:`OutputWriteError` naming its file."""
         first: BaseException | None = None
         for f in (self._evac, self._outflow, self._traj, *self._extra.values()):
             try:
                 if f is not None and not f.closed:
                     f.close()
             except OSError as exc:
-                first = first or exc
+                first = first or _write_error(f.name, exc)
         for w in (self._density, self._peds):
             try:
                 if w is not None:
                     w.close()
             except OSError as exc:
-                first = first or exc
+                first = first or _write_error(w.path, exc)
         if self._sql is not None:
             try:
                 self._sql.close()
             except sqlite3.Error as exc:
-                first = first or exc
+                first = first or _write_error(self.dir / "trajectories.sqlite", exc)
             self._sql = None
         if first is not None:
             raise first
 
     def finish(self, **summary: Any) -> dict[str, Any]:
         """Close the files, write the final summary and release the directory; returns
-        the summary. If closing a file fails (a full disk), the run is marked failed."""
+        the summary. If closing a file fails (a full disk), the run is marked failed.
+        Pedmesh's temporary files are removed; if the summary cannot be written (a full
+        disk), the space held in .lock is given back and it is written again."""
         try:
             self.close_files()
-        except (OSError, sqlite3.Error) as exc:
+        except OSError as exc:
             if summary.get("status") != "failed":
-                summary = {**summary, "status": "failed", "error": f"writing output: {exc}"}
+                summary = {**summary, "status": "failed", "error": str(exc)}
         data = {**self.header, **summary}
         try:
-            self._write_summary(data)
+            self._remove_temporaries()
+        except OSError:
+            pass
+        try:
+            try:
+                self._write_summary(data)
+            except OutputWriteError:
+                self._release_reserve()
+                self._write_summary(data)
         finally:
+            self._release_reserve()
             self._lock.close()
         return _clean(data)

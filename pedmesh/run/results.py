@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-import json
+import csv
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -20,10 +21,32 @@ FINISHED_STATUSES = ("finished", "stopped at t_end")
 
 
 def _csv(path: Path) -> tuple[list[str], np.ndarray]:
-    with open(path, encoding="utf-8") as f:
-        header = f.readline().strip().split(",")
-    data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    """(header, numbers) of a CSV file of numbers whose header may hold quoted names (an
+    exit name with a comma or a newline)."""
+    with open(path, encoding="utf-8", newline="") as f:
+        header = next(csv.reader(f), [])
+        with warnings.catch_warnings():  # a run stopped before its first row
+            warnings.simplefilter("ignore", UserWarning)
+            data = np.loadtxt(f, delimiter=",", ndmin=2)
+    if data.size == 0:
+        data = np.zeros((0, len(header)))
     return header, data
+
+
+def _check_frame_mesh(path: Path, frame, mesh) -> None:
+    """A one-line error unless ``mesh`` is the mesh of the frame read from ``path``."""
+    pts = np.asarray(getattr(mesh, "points", np.zeros((0, 2))))
+    n_tri = getattr(mesh, "n_triangles", None)
+    why = None
+    if frame.n_cells != n_tri or frame.n_points != len(pts):
+        why = (f"the run's mesh has {frame.n_points} vertices and {frame.n_cells} triangles, "
+               f"the mesh given {len(pts)} and {n_tri}")
+    elif pts.ndim != 2 or not np.allclose(np.asarray(frame.points)[:, :pts.shape[1]], pts,
+                                          rtol=0.0, atol=1e-9):
+        why = "the vertices of the mesh given are not the run's"
+    if why:
+        raise PedmeshError(f"{path}: not a frame of this mesh ({why}); give the mesh the run "
+                           "was made on")
 
 
 @dataclass
@@ -35,11 +58,13 @@ class RunResult:
 
     @classmethod
     def load(cls, path: str | Path) -> "RunResult":
+        """The run in ``path``; a one-line :class:`~pedmesh.errors.PedmeshError` naming the
+        file if there is no summary.json or it is broken (truncated, not a JSON object,
+        wrong-typed fields: :class:`~pedmesh.run.output.BrokenSummaryError`)."""
+        from .output import load_summary
+
         p = Path(path)
-        s = p / "summary.json"
-        if not s.exists():
-            raise PedmeshError(f"{p}: not a run directory (no summary.json)")
-        return cls(p, json.loads(s.read_text()))
+        return cls(p, load_summary(p))
 
     @property
     def model(self) -> str:
@@ -91,8 +116,9 @@ class RunResult:
         p = self.path / "exits.csv"
         if not p.exists():
             return np.zeros(0)
-        rows = p.read_text().splitlines()[1:]
-        return np.array([float(r.split(",")[2]) for r in rows if r])
+        with open(p, encoding="utf-8", newline="") as f:
+            rows = list(csv.reader(f))[1:]
+        return np.array([float(r[2]) for r in rows if r], float)
 
     @cached_property
     def density_frames(self) -> list[tuple[float, Path]]:
@@ -101,7 +127,9 @@ class RunResult:
 
     def density_at(self, t: float, mesh) -> tuple[float, np.ndarray, np.ndarray]:
         """(frame time, cell density [ped/m^2], cell velocity [m/s]) of the frame nearest
-        to ``t``. Vertex fields (particle models) are averaged to the cells."""
+        to ``t``. Vertex fields (particle models) are averaged to the cells. ``mesh``: the
+        mesh the run was made on; another mesh is refused (its vertices or triangles differ
+        from the frame's)."""
         import pyvista as pv
 
         frames = self.density_frames
@@ -110,6 +138,7 @@ class RunResult:
         k = int(np.argmin([abs(ft - t) for ft, _ in frames]))
         ft, f = frames[k]
         m = pv.read(f)
+        _check_frame_mesh(f, m, mesh)
         if "rho" in m.cell_data:
             rho = np.asarray(m.cell_data["rho"])
             vel = np.asarray(m.cell_data["velocity"])[:, :2]

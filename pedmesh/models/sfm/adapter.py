@@ -3,6 +3,7 @@ entry."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -37,6 +38,11 @@ class SFMRun:
         from .params import with_overrides
 
         self.params, self.numerics = with_overrides(overrides, SocialForceParams(), SFMNumerics())
+        if room is not None and getattr(mesh, "room", None) is not room \
+                and dataclasses.is_dataclass(mesh):
+            # the crowd (start areas, entrances) is the run's room's, not that of the room
+            # the mesh was made from (the driver checked that their walls and exits match)
+            mesh = dataclasses.replace(mesh, room=room)
         rate = trajectory_rate
         if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
             raise ParameterError(f"trajectory rate must be a positive number of frames per "
@@ -162,13 +168,14 @@ class SFMRun:
             self._next_record += self.sample_interval * max(
                 1, math.floor((t - self._next_record) / self.sample_interval + 1e-9) + 1)
             f = self.kernel_outflow()
-            writer.append_rows("outflow_kernel.csv", "t," + ",".join(self.mesh.exit_names),
-                               [f"{t:.4f}," + ",".join(f"{v:.6g}" for v in f)])
+            # rows as fields: the writer quotes exit names with commas or newlines
+            writer.append_rows("outflow_kernel.csv", ["t", *self.mesh.exit_names],
+                               [[f"{t:.4f}", *(f"{v:.6g}" for v in f)]])
             new = np.flatnonzero(np.isfinite(sim.exit_time) & ~self._exits_out)
             new = new[np.argsort(sim.exit_time[new], kind="stable")]
             names = self.mesh.exit_names
-            writer.append_rows("exits.csv", "id,exit,t",
-                               [f"{i},{names[sim.exit_id[i]]},{sim.exit_time[i]:.4f}"
+            writer.append_rows("exits.csv", ["id", "exit", "t"],
+                               [[int(i), names[sim.exit_id[i]], f"{sim.exit_time[i]:.4f}"]
                                 for i in new])
             self._exits_out[new] = True
 
