@@ -22,7 +22,8 @@ from typing import Mapping
 
 import numpy as np
 
-__all__ = ["mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter", "read_pvd_index"]
+__all__ = ["mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter", "read_pvd_index",
+           "read_vtu", "read_vtp"]
 
 ArrayMap = Mapping[str, np.ndarray] | None
 
@@ -89,7 +90,7 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
         m.write(tmp, file_format="vtu")
         os.replace(tmp, path)
     except BaseException:
-        tmp.unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)  # never leave a .part behind (e.g. a full disk)
         raise
     return path
 
@@ -315,3 +316,55 @@ def read_pvd_index(path: str | Path) -> list[tuple[float, Path]]:
         (float(ds.get("timestep")), path.parent / ds.get("file"))
         for ds in root.iter("DataSet")
     ]
+
+
+def _arrays(data, names) -> dict[str, np.ndarray]:
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    out = {}
+    for k in range(data.GetNumberOfArrays()):
+        arr = data.GetArray(k)
+        if arr is not None and (names is None or arr.GetName() in names):
+            out[arr.GetName()] = vtk_to_numpy(arr).copy()
+    return out
+
+
+def read_vtu(path: str | Path, *, point_arrays=None, cell_arrays=None):
+    """(points (n, 3) [m], triangles (m, 3), point fields, cell fields) of a ``.vtu`` of
+    triangles (a frame of density.pvd), read with VTK's XML reader; ``point_arrays`` and
+    ``cell_arrays``: the names of the fields to return (None: all)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+
+    r = vtkXMLUnstructuredGridReader()
+    r.SetFileName(str(path))
+    r.Update()
+    g = r.GetOutput()
+    if g is None or g.GetPoints() is None:
+        raise OSError(f"could not read {path}")
+    pts = vtk_to_numpy(g.GetPoints().GetData()).copy()
+    cells = g.GetCells()
+    conn = vtk_to_numpy(cells.GetConnectivityArray())
+    offsets = vtk_to_numpy(cells.GetOffsetsArray())
+    if len(offsets) > 1 and not np.all(np.diff(offsets) == 3):
+        raise ValueError(f"{path}: not a mesh of triangles only")
+    tri = conn.reshape(-1, 3).astype(np.int64)
+    return (pts, tri, _arrays(g.GetPointData(), point_arrays),
+            _arrays(g.GetCellData(), cell_arrays))
+
+
+def read_vtp(path: str | Path, *, arrays=None):
+    """(points (n, 3) [m], point fields) of a ``.vtp`` point cloud (a frame of
+    pedestrians.pvd); ``arrays``: the names of the fields to return (None: all)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+    r = vtkXMLPolyDataReader()
+    r.SetFileName(str(path))
+    r.Update()
+    g = r.GetOutput()
+    if g is None:
+        raise OSError(f"could not read {path}")
+    p = g.GetPoints()
+    pts = vtk_to_numpy(p.GetData()).copy() if p is not None else np.zeros((0, 3))
+    return pts, _arrays(g.GetPointData(), arrays)

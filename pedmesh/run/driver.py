@@ -241,18 +241,41 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
     finally:
         if bar is not None:
             bar.close()
+        wall = time.perf_counter() - t_wall0  # (the run's, without the safety measures)
         result: dict[str, Any] = {}
         if run is not None:
             try:
                 result = dict(run.summary())
             except Exception as exc:  # the summary of a broken run: keep what we know
                 result = {"summary_error": f"{type(exc).__name__}: {exc}"}
+            result["safety"] = _safety(plan, writer, result)
         summary = writer.finish(status=status, error=error,
                                 t_stop=run.t if run is not None else 0.0, frames=frame,
-                                wall_time_s=time.perf_counter() - t_wall0, **result)
+                                wall_time_s=wall, **result)
     if summary.get("status") == "failed":  # the output could not be closed (full disk)
         raise SimulationError(f"{summary.get('error')} (results up to then are in {where})")
     return summary
+
+
+def _safety(plan: RunPlan, writer, result: Mapping[str, Any]) -> dict:
+    """The run's crowd-safety measures (:mod:`pedmesh.run.safety`) from what it wrote, and
+    safety.vtu beside them; an error is recorded ({"error": ...}), never raised, so that
+    the measures cannot fail a run (not even a Ctrl-C while they are computed)."""
+    try:
+        from .safety import safety_from_memory, safety_measures
+
+        room = plan.room if plan.room is not None else getattr(plan.mesh, "room", None)
+        # a run given its own start positions: its people are not the start areas'
+        n0 = None if "positions" in plan.options else result.get("n_initial")
+        if getattr(writer, "dir", None) is not None:
+            return safety_measures(writer.dir, room, plan.mesh, n_initial=n0,
+                                   write_fields=True)
+        return safety_from_memory(writer, room, plan.mesh, n_initial=n0)
+    except KeyboardInterrupt:
+        return {"error": "interrupted while the safety measures were computed"}
+    except Exception as exc:
+        msg = str(exc) if isinstance(exc, PedmeshError) else f"{type(exc).__name__}: {exc}"
+        return {"error": msg}
 
 
 def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:

@@ -49,8 +49,9 @@ from ..io.vtk import PVDWriter
 #: this list); "(particle models)" marks those only particle models write
 OUTPUT_FILES: dict[str, str] = {
     "summary.json": "model, status, n_initial, n_evacuated, t_evac_50/90/100 [s], steps, "
-                    "dt, wall time, every parameter used with its unit, and the run's "
-                    "settings (room file hash, model, preset, overrides, t_end, mesh)",
+                    "dt, wall time, every parameter used with its unit, the run's "
+                    "settings (room file hash, model, preset, overrides, t_end, mesh), and "
+                    "the crowd-safety measures (\"safety\", see docs/safety.md)",
     "evacuation.csv": "t,evacuated (cumulative number out), every sample_interval (0.1 s)",
     "outflow.csv": "t and the flow [ped/s] through each exit, the mean since the previous "
                    "row (crossings, or the integrated boundary flux of a continuum model)",
@@ -62,6 +63,10 @@ OUTPUT_FILES: dict[str, str] = {
     "trajectories.sqlite": "(particle models) the same in JuPedSim's SQLite format (with the "
                            "walkable area), for pedpy.load_trajectory_from_jupedsim_sqlite",
     "exits.csv": "(particle models) id,exit,t of everyone who left",
+    "safety.vtu": "the crowd-safety maps per cell: peak density on 1 m^2 [ped/m^2] and its "
+                  "time, worst Fruin level of service (0-5 for A-F, walkway and queuing), "
+                  "time above 2, 4, 6 /m^2 [s], the social force model's max crowd "
+                  "pressure [1/s^2]; the numbers are in summary.json under \"safety\"",
 }
 
 try:  # POSIX advisory locks; elsewhere the process id in summary.json is checked
@@ -82,7 +87,7 @@ TEMP_FILES = ("summary.json.part", "density.pvd.part", "pedestrians.pvd.part",
 #: and nothing else
 RUN_FILES = ("summary.json", "evacuation.csv", "outflow.csv", "outflow_kernel.csv",
              "exits.csv", "density.pvd", "density", "pedestrians.pvd", "pedestrians",
-             "trajectories.txt", "trajectories.sqlite", ".lock") + TEMP_FILES
+             "trajectories.txt", "trajectories.sqlite", "safety.vtu", ".lock") + TEMP_FILES
 LOCK = ".lock"
 #: a frame's temporary file in density/ or pedestrians/ (see pedmesh.io.vtk)
 _FRAME_TEMP = re.compile(r"(density|pedestrians)_\d{6,}\.part\.(vtu|vtp)")

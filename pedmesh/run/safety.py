@@ -1,0 +1,324 @@
+"""The crowd-safety measures of a run (:mod:`pedmesh.analysis.safety` applied to its
+output): the numbers every run records under ``"safety"`` in summary.json, and the
+per-cell maps of ``safety.vtu``.
+
+:func:`safety_measures` reads a run folder (density.pvd, pedestrians.pvd, exits.csv,
+outflow.csv, summary.json); :func:`safety_from_memory` does the same for a run kept in
+memory (:class:`~pedmesh.run.memory.MemoryWriter`). The shape of the record is
+:data:`SAFETY_KEYS`; docs/safety.md explains each number.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Sequence
+
+import numpy as np
+
+from ..analysis import safety as S
+from ..errors import PedmeshError
+from ..parameters import DEFAULTS as D
+
+__all__ = ["safety_measures", "safety_from_memory", "write_safety_vtu", "SAFETY_VTU",
+           "SAFETY_KEYS", "LOS_SCALE"]
+
+#: the file of the per-cell safety maps in a run folder
+SAFETY_VTU = "safety.vtu"
+
+#: the keys of summary.json's "safety" record (or {"error": "..."} if it failed)
+SAFETY_KEYS = ("peak_density", "area_time_above", "area_time_unit", "time_above",
+               "level_of_service", "crowd_pressure", "exits", "clear_times")
+
+#: the level-of-service scale of the summary (the queuing one is in safety.vtu)
+LOS_SCALE = "walkway"
+
+#: [ped] an area counts as clear once fewer than this many people are in it (the same
+#: half person as a continuum run's ``empty_below`` and the exits' first/last passage)
+CLEAR_BELOW = 0.5
+
+
+@dataclass
+class _RunData:
+    """What the measures need of a run, whether read from files or kept in memory."""
+
+    t: np.ndarray  # (F,) frame times [s]
+    points: np.ndarray  # (n, 2) [m]
+    triangles: np.ndarray  # (m, 3)
+    density: np.ndarray  # (F, m) cell densities [ped/m^2]
+    particle: bool  # the density is a particle model's kernel density at the vertices
+    pedestrians: Callable[[], Iterable[tuple[float, np.ndarray, np.ndarray]]] | None
+    exit_names: list[str]
+    crossings: tuple[np.ndarray, np.ndarray, np.ndarray] | None  # ids, exits, times
+    outflow: tuple[np.ndarray, np.ndarray]  # t [s], flows (k, exits) [ped/s]
+    R: float  # [m] the kernel width of the particle model's density
+
+
+def _areas_centroids(points: np.ndarray, triangles: np.ndarray):
+    p = points[triangles]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    areas = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    return areas, p.mean(axis=1)
+
+
+def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
+    import warnings
+
+    with open(path, encoding="utf-8") as f:
+        header = f.readline().strip().split(",")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (numpy warns of a table with no rows)
+        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+    return header, data.reshape(-1, len(header))
+
+
+def _crossings_from_rows(rows: Sequence[str]):
+    ids, names, times = [], [], []
+    for r in rows:
+        if r:
+            i, e, t = r.split(",")
+            ids.append(int(i))
+            names.append(e)
+            times.append(float(t))
+    return np.array(ids, np.int64), np.array(names, dtype=object), np.array(times, float)
+
+
+def _velocities(data: dict, n: int) -> np.ndarray:
+    v = np.asarray(data.get("velocity", np.zeros((n, 2))), float)
+    return v[:, :2] if v.ndim == 2 and len(v) == n else np.zeros((n, 2))
+
+
+def _cell_density(particle: bool, triangles: np.ndarray, field: np.ndarray) -> np.ndarray:
+    if particle:  # the kernel density at the vertices, averaged to the cells
+        return np.asarray(field, float)[triangles].mean(axis=1)
+    return np.asarray(field, float)
+
+
+def _from_folder(d: Path, mesh, summary: dict) -> _RunData:
+    from ..io.vtk import read_pvd_index, read_vtp, read_vtu
+
+    if not (d / "density.pvd").exists():
+        raise PedmeshError(f"{d}: no density.pvd")
+    frames = read_pvd_index(d / "density.pvd")
+    if not frames:
+        raise PedmeshError(f"{d}: density.pvd lists no frames")
+    ts, dens = [], []
+    points = triangles = None
+    particle = False
+    for k, (t, f) in enumerate(frames):
+        pts, tri, pd, cd = read_vtu(f, point_arrays=("density",), cell_arrays=("rho",))
+        if k == 0:
+            points, triangles = pts[:, :2], tri
+            particle = "rho" not in cd
+        if particle and "density" not in pd:
+            raise PedmeshError(f"{f}: neither a cell field 'rho' nor a point field 'density'")
+        ts.append(t)
+        dens.append(_cell_density(particle, triangles, pd["density"] if particle
+                                  else cd["rho"]))
+    if mesh is not None:
+        if mesh.n_triangles != len(triangles):
+            raise PedmeshError(f"{d}: the frames have {len(triangles)} cells, the mesh "
+                               f"{mesh.n_triangles}")
+        points, triangles = np.asarray(mesh.points)[:, :2], np.asarray(mesh.triangles)
+    peds = None
+    if particle and (d / "pedestrians.pvd").exists():
+        pframes = read_pvd_index(d / "pedestrians.pvd")
+
+        def peds():
+            for t, f in pframes:
+                pts, data = read_vtp(f, arrays=("velocity",))
+                yield t, pts[:, :2], _velocities(data, len(pts))
+
+    names: list[str] = []
+    ot, of = np.zeros(0), np.zeros((0, 0))
+    if (d / "outflow.csv").exists():
+        h, data = _read_csv(d / "outflow.csv")
+        names, ot, of = h[1:], data[:, 0], data[:, 1:]
+    crossings = None
+    if particle and (d / "exits.csv").exists():
+        crossings = _crossings_from_rows(
+            (d / "exits.csv").read_text(encoding="utf-8").splitlines()[1:])
+    R = float((summary.get("parameters") or {}).get("R") or D["R"])
+    return _RunData(np.array(ts, float), points, triangles, np.array(dens), particle, peds,
+                    list(names), crossings, (ot, of), R)
+
+
+def _from_memory(writer, mesh, R: float) -> _RunData:
+    if not writer.density:
+        raise PedmeshError("the run wrote no density frames")
+    particle = "rho" not in writer.density[0][2]
+    tri = np.asarray(mesh.triangles)
+    dens = np.array([_cell_density(particle, tri, pd["density"] if particle else cd["rho"])
+                     for _, pd, cd in writer.density])
+    peds = None
+    if particle and writer.pedestrians:
+        def peds():
+            for t, pos, data in writer.pedestrians:
+                yield t, np.asarray(pos)[:, :2], _velocities(data, len(pos))
+    rows = writer.outflow_rows
+    ot = np.array([r[0] for r in rows], float)
+    of = np.array([r[1] for r in rows], float).reshape(len(rows), len(writer.exit_names))
+    crossings = None
+    if particle and "exits.csv" in writer.tables:
+        crossings = _crossings_from_rows(writer.tables["exits.csv"][1])
+    return _RunData(np.array([f[0] for f in writer.density], float),
+                    np.asarray(mesh.points)[:, :2], tri, dens, particle, peds,
+                    list(writer.exit_names), crossings, (ot, of), R)
+
+
+def _room_of(summary: dict, d: Path | None):
+    """The room a run was made from, if its file is still there unchanged."""
+    from .output import file_sha256
+
+    geometry = summary.get("geometry")
+    want = (summary.get("settings") or {}).get("room_sha256")
+    if not geometry or not want:
+        return None
+    for p in ([Path(geometry)] + ([d / geometry] if d is not None else [])):
+        if p.is_file() and file_sha256(p) == want:
+            from ..io import load_room
+
+            return load_room(p)
+    return None
+
+
+def _compute(data: _RunData, room, n_initial) -> tuple[dict, dict[str, np.ndarray]]:
+    """The summary record and the per-cell fields of safety.vtu."""
+    areas, centroids = _areas_centroids(data.points, data.triangles)
+    t = data.t
+    local = S.local_density(density=data.density, centroids=centroids, areas=areas)
+    peak = S.peak_density(t=t, density=local, centroids=centroids)
+    r = S.ONE_SQUARE_METRE_RADIUS
+    over = (f"1 m^2 disk average (cells with centroids within {r:.3f} m) of the "
+            + (f"kernel density (R = {data.R:g} m) at the vertices averaged to the cells"
+               if data.particle else "cell densities"))
+    thresholds = S.DENSITY_THRESHOLDS
+    area_time = S.area_time_above(t=t, density=local, areas=areas, thresholds=thresholds)
+    time_top = S.time_above(t=t, density=local, thresholds=thresholds)
+    worst = S.worst_level_of_service(density=local, scale=LOS_SCALE)
+    worst_q = S.worst_level_of_service(density=local, scale="queuing")
+    counts = np.bincount(worst, minlength=6)
+    w = S.frame_weights(t=t)
+    fields: dict[str, np.ndarray] = {
+        "peak_density": peak.per_cell,
+        "peak_density_time": peak.t_per_cell,
+        "worst_los": worst.astype(np.int32),
+        "worst_los_queuing": worst_q.astype(np.int32),
+    }
+    for th in thresholds:
+        fields[f"time_above_{th:g}"] = w @ (local > th)
+
+    pressure = None
+    if data.pedestrians is not None:
+        pp = S.peak_crowd_pressure(frames=data.pedestrians(), points=centroids, R=data.R)
+        fields["max_crowd_pressure"] = pp.per_point
+        pressure = {"max": pp.max, "unit": "1/s^2", "t": pp.t, "x": pp.x, "y": pp.y}
+
+    names = data.exit_names
+    if data.crossings is not None:
+        _, ex, et = data.crossings
+        usage = S.exit_usage_from_crossings(exits=ex, times=et, names=names)
+    else:
+        usage = S.exit_usage_from_flow(t=data.outflow[0], flow=data.outflow[1], names=names)
+    exits = {n: {"people": u.people, "first": u.first, "last": u.last}
+             for n, u in usage.items()}
+
+    start_areas: dict[str, float | None] = {}
+    measurement: dict[str, float | None] = {}
+    if room is not None:
+        names_sa = [a.name for a in room.start_areas]
+        start_areas = dict.fromkeys(names_sa)
+        if data.crossings is not None and n_initial is not None:
+            counts_sa = [len(a.positions(room.walkable)) for a in room.start_areas]
+            if sum(counts_sa) == int(n_initial):
+                ids, _, et = data.crossings
+                times = np.full(int(n_initial), np.nan)
+                ok = (ids >= 0) & (ids < len(times))
+                times[ids[ok]] = et[ok]
+                start_areas = dict(zip(names_sa, S.group_clear_times(exit_times=times,
+                                                                     counts=counts_sa)))
+        for m in room.measurement_areas:
+            frac = S.cell_fractions(points=data.points, triangles=data.triangles,
+                                    polygon=m.shape)
+            content = S.area_content(density=data.density, areas=areas, fractions=frac)
+            measurement[m.name] = S.clear_time(t=t, content=content, below=CLEAR_BELOW)
+
+    record = {
+        "peak_density": {"value": peak.value, "unit": "ped/m^2", "t": peak.t, "x": peak.x,
+                         "y": peak.y, "over": over},
+        "area_time_above": {f"{k:g}": v for k, v in area_time.items()},
+        "area_time_unit": "m^2 s",
+        "time_above": {f"{k:g}": v for k, v in time_top.items()},
+        "level_of_service": {
+            "scale": f"Fruin {LOS_SCALE}",
+            "worst": S.los_letter(int(worst.max())) if len(worst) else "A",
+            "cells_by_worst": {S.LOS_LETTERS[k]: int(counts[k]) for k in range(6)}},
+        "crowd_pressure": pressure,
+        "exits": exits,
+        "clear_times": {"start_areas": start_areas, "measurement_areas": measurement},
+    }
+    return record, fields
+
+
+def write_safety_vtu(path: str | Path, *, points: np.ndarray, triangles: np.ndarray,
+                     fields: dict[str, np.ndarray]) -> Path:
+    """Write the per-cell safety maps to a ``.vtu`` (one frame, cell fields) ParaView
+    opens next to density.pvd."""
+    from types import SimpleNamespace
+
+    from ..io.vtk import write_vtu
+
+    pts = np.asarray(points, float)[:, :2]
+    tri = np.asarray(triangles)
+    mesh = SimpleNamespace(points=pts, triangles=tri, n_points=len(pts),
+                           n_triangles=len(tri))
+    return write_vtu(path, mesh, cell_data=fields)
+
+
+def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
+                    n_initial: float | None = None, write_fields: bool = False) -> dict:
+    """The crowd-safety measures of the run in ``run_dir`` (see :data:`SAFETY_KEYS` and
+    docs/safety.md), as recorded in summary.json under ``"safety"``.
+
+    ``room``: the run's :class:`~pedmesh.geometry.Room` (default: its room file, if it is
+    still there with the hash the run recorded), for the start and measurement areas;
+    ``mesh``: its mesh (default: the frames' own); ``n_initial``: the number of
+    pedestrians at the start (default: summary.json's, unless the run was given its own
+    start positions), to tell the start areas' people apart (their ids follow the start
+    areas' order; without it their clear times are None). ``write_fields``: also write
+    the per-cell maps to ``safety.vtu`` in the folder. Raises
+    :class:`~pedmesh.errors.PedmeshError` if the folder has no density frames.
+    """
+    d = Path(run_dir)
+    try:
+        summary = json.loads((d / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        summary = {}
+    if room is None:
+        room = _room_of(summary, d)
+    if n_initial is None and "positions" not in (
+            (summary.get("settings") or {}).get("model_options") or {}):
+        n_initial = summary.get("n_initial")  # (not for a run given its own positions)
+    data = _from_folder(d, mesh, summary)
+    record, fields = _compute(data, room, n_initial)
+    if write_fields:
+        write_safety_vtu(d / SAFETY_VTU, points=data.points, triangles=data.triangles,
+                         fields=fields)
+    return _clean(record)
+
+
+def safety_from_memory(writer, room, mesh, *, n_initial: float | None = None,
+                       R: float | None = None) -> dict:
+    """:func:`safety_measures` of a run kept in memory (a
+    :class:`~pedmesh.run.memory.MemoryWriter`) on ``mesh``."""
+    if R is None:
+        R = float((writer.header.get("parameters") or {}).get("R") or D["R"])
+    record, _ = _compute(_from_memory(writer, mesh, R), room, n_initial)
+    return _clean(record)
+
+
+def _clean(record: dict) -> dict:
+    from .output import _clean as clean
+
+    return clean(record)
