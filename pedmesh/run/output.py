@@ -82,7 +82,7 @@ __all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "BrokenSummaryError",
 #: pedmesh's own temporary files in a run folder (exact names); the frames' temporary
 #: files (``density_000012.part.vtu``) are inside ``density/`` and ``pedestrians/``
 TEMP_FILES = ("summary.json.part", "density.pvd.part", "pedestrians.pvd.part",
-              "trajectories.sqlite-journal")
+              "safety.vtu.part", "trajectories.sqlite-journal")
 #: the exact names of everything a run writes into its directory: a rerun removes these
 #: and nothing else
 RUN_FILES = ("summary.json", "evacuation.csv", "outflow.csv", "outflow_kernel.csv",
