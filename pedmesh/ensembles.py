@@ -78,9 +78,12 @@ def parse_sweep(items: Sequence[str]) -> dict[str, list[Any]]:
             raise ParameterError(f"--sweep expects NAME=V1,V2,..., got '{item}'")
         name, values = item.split("=", 1)
         name = name.strip()
-        vals = [v.strip() for v in values.split(",") if v.strip()]
-        if not name or not vals:
+        vals = [v.strip() for v in values.split(",")]
+        if not name or not any(vals):
             raise ParameterError(f"--sweep expects NAME=V1,V2,..., got '{item}'")
+        if not all(vals):  # (an empty value is a typo: refused, not dropped)
+            raise ParameterError(f"--sweep {name}: value {vals.index('') + 1} of {len(vals)} "
+                                 f"is empty in '{item}'")
         if name in out:
             raise ParameterError(f"parameter '{name}' is swept twice")
         out[name] = [parse_overrides([f"{name}={v}"])[name] for v in vals]
