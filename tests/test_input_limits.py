@@ -244,7 +244,8 @@ def test_an_empty_sweep_value_is_refused():
     assert parse_sweep(["U_f=1.0, 1.2"]) == {"U_f": [1.0, 1.2]}
     for item, message in (("U_f=1.0,,1.2", "--sweep U_f: value 2 of 3 is empty"),
                           ("U_f=1.0,1.2,", "--sweep U_f: value 3 of 3 is empty"),
-                          ("U_f=,", "--sweep expects NAME=V1,V2")):
+                          ("U_f=,", "--sweep expects NAME=V1,V2"),
+                          ("U_f=1.0,1e300", r"'U_f' must be in \[0.1, 5\] m/s, got 1e\+300")):
         with pytest.raises(ParameterError, match=message):
             parse_sweep([item])
 
