@@ -295,9 +295,9 @@ TABLE1: tuple[Parameter, ...] = declare(
     _positive("B", 0.08, "m", "range of the social repulsion B", TABLE1_SOURCE,
               range=(0.01, 2.0)),
     _positive("k", 1.2e5, "kg/s^2", "body (contact) force constant k (range: about 1 % to "
-              "100 times Table 1's)", TABLE1_SOURCE, range=(1e3, 1e7)),
+              "80 times Table 1's)", TABLE1_SOURCE, range=(1e3, 1e7)),
     _positive("kappa", 2.4e5, "kg/(m s)", "sliding friction constant kappa (range: about "
-              "1 % to 400 times Table 1's; benchmarks/corridor_flows.py probes 100 times)",
+              "0.4 % to 400 times Table 1's; benchmarks/corridor_flows.py probes 100 times)",
               TABLE1_SOURCE, range=(1e3, 1e8)),
 )
 
