@@ -37,10 +37,12 @@ from .parameters import DEFAULT_T_END_S
 __all__ = ["simulate", "build"]
 
 
-def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None):
+def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
+                   max_people: int | None = None):
     from .geometry import Room
     from .io import load_room
     from .mesh import triangulate
+    from .run.driver import check_crowd
 
     geometry = None
     if isinstance(room, (str, Path)):
@@ -49,6 +51,7 @@ def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None):
     elif not isinstance(room, Room):
         raise ParameterError(f"room must be a Room or the path of a room file, got "
                              f"{type(room).__name__}")
+    check_crowd(room, max_people)  # (before the mesh and the crowd are made)
     if mesh is None:
         mesh = triangulate(room, **dict(mesh_options or {}))
     elif mesh_options:
@@ -58,38 +61,44 @@ def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None):
 
 def build(room, model: str = "sfm", *, preset: str | None = None,
           params: Mapping[str, Any] | None = None, mesh=None,
-          mesh_options: Mapping[str, Any] | None = None, **options: Any):
+          mesh_options: Mapping[str, Any] | None = None, max_people: int | None = None,
+          **options: Any):
     """Model ``model`` on ``room`` (a :class:`~pedmesh.geometry.Room` or a room file),
     built with the parameters of ``preset`` (default: the room file's, else
     ``validated``) and ``params`` on top, ready to :meth:`step`. ``mesh``: a
     :class:`~pedmesh.mesh.TriMesh` of the room (default: triangulated with
-    ``mesh_options``, see :func:`pedmesh.mesh.triangulate`). ``options``: the model
-    options its registry entry lists (e.g. ``seed`` for the social force model)."""
+    ``mesh_options``, see :func:`pedmesh.mesh.triangulate`). ``max_people``: the largest
+    crowd taken (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`). ``options``:
+    the model options its registry entry lists (e.g. ``seed`` for the social force
+    model)."""
     from .run.driver import build_model
 
-    room, mesh, _ = _room_and_mesh(room, mesh, mesh_options)
-    return build_model(room, mesh, model, preset=preset, overrides=params, **options)
+    room, mesh, _ = _room_and_mesh(room, mesh, mesh_options, max_people)
+    return build_model(room, mesh, model, preset=preset, overrides=params,
+                       max_people=max_people, **options)
 
 
 def simulate(room, model: str = "sfm", *, preset: str | None = None,
              params: Mapping[str, Any] | None = None, out_dir: str | Path | None = None,
              t_end: float = DEFAULT_T_END_S, mesh=None,
              mesh_options: Mapping[str, Any] | None = None,
-             quiet: bool = True, **options: Any):
+             quiet: bool = True, max_people: int | None = None, **options: Any):
     """Run ``model`` on ``room`` until everyone has left or ``t_end`` [s] and return the
     result (see the module docstring). ``params``: parameter values by name (see ``pedmesh
     presets`` and the parameter tables of the docs); ``out_dir``: write the run folder
-    there (None: keep everything in memory); ``quiet``: no progress bar. Errors are
+    there (None: keep everything in memory); ``quiet``: no progress bar; ``max_people``:
+    the largest crowd taken (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`; a
+    larger one is refused before anything is allocated). Errors are
     :class:`~pedmesh.errors.PedmeshError` with one line naming the problem."""
     from .run.driver import execute, plan_run
     from .run.memory import MemoryWriter
     from .run.output import RunWriter
     from .run.results import RunResult
 
-    room, mesh, geometry = _room_and_mesh(room, mesh, mesh_options)
+    room, mesh, geometry = _room_and_mesh(room, mesh, mesh_options, max_people)
     plan = plan_run(room, mesh, model, overrides=params, t_end=t_end, geometry=geometry,
                     mesh_options=dict(mesh_options or {}), model_options=options,
-                    preset=preset)
+                    preset=preset, max_people=max_people)
     if out_dir is None:
         writer = MemoryWriter(plan.header, exit_names=mesh.exit_names)
         execute(plan, writer, quiet=quiet, where="the result in memory")

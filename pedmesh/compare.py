@@ -137,10 +137,11 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
                    t_end: float = DEFAULT_T_END_S, quiet: bool = False, geometry: str | None = None,
                    mesh_options: dict | None = None, density_times: Sequence[float] | None = None,
                    reuse: bool = True, plots: bool = True,
-                   preset: str | None = None) -> ComparisonResult:
+                   preset: str | None = None,
+                   max_people: int | None = None) -> ComparisonResult:
     """Run (or reuse) every model, then write plots, comparison.csv and comparison.md.
     ``preset``: the parameter preset of every run (:mod:`pedmesh.presets`; None: the room
-    file's, else the default)."""
+    file's, else the default); ``max_people``: the largest crowd a run takes."""
     from .presets import resolve_preset
     from .run import run_model
     from .run.driver import run_settings
@@ -172,7 +173,8 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
         if not quiet:
             print(f"{prefix}: running ({why})", file=sys.stderr)
         run_model(room, mesh, spec.name, overrides=spec.overrides, t_end=t_end, out_dir=d,
-                  quiet=quiet, geometry=geometry, mesh_options=mesh_options, preset=preset)
+                  quiet=quiet, geometry=geometry, mesh_options=mesh_options, preset=preset,
+                  max_people=max_people)
         runs[spec.label] = RunResult.load(d)
     labels = list(runs)
     ref = runs[labels[0]]

@@ -89,8 +89,8 @@ def member_seeds(seed: int, members: int) -> list[int]:
 
 def parse_sweep(items: Sequence[str]) -> dict[str, list[Any]]:
     """``["width=0.8,1.2", "dt=0.01"]`` -> ``{"width": [0.8, 1.2], "dt": [0.01]}`` (values
-    parsed as ``--param`` values are)."""
-    from .parameters import parse_overrides
+    parsed as ``--param`` values are; a declared parameter's within its physical range)."""
+    from .parameters import PARAMETERS, parse_overrides
 
     out: dict[str, list[Any]] = {}
     for item in items:
@@ -98,12 +98,18 @@ def parse_sweep(items: Sequence[str]) -> dict[str, list[Any]]:
             raise ParameterError(f"--sweep expects NAME=V1,V2,..., got '{item}'")
         name, values = item.split("=", 1)
         name = name.strip()
-        vals = [v.strip() for v in values.split(",") if v.strip()]
-        if not name or not vals:
+        vals = [v.strip() for v in values.split(",")]
+        if not name or not any(vals):
             raise ParameterError(f"--sweep expects NAME=V1,V2,..., got '{item}'")
+        if not all(vals):  # (an empty value is a typo: refused, not dropped)
+            raise ParameterError(f"--sweep {name}: value {vals.index('') + 1} of {len(vals)} "
+                                 f"is empty in '{item}'")
         if name in out:
             raise ParameterError(f"parameter '{name}' is swept twice")
         out[name] = [parse_overrides([f"{name}={v}"])[name] for v in vals]
+        if name in PARAMETERS:  # (refused here, not in every member on the cluster)
+            for v in out[name]:
+                PARAMETERS[name].check(v)
     return out
 
 

@@ -21,8 +21,8 @@ A number instead of a distribution is a constant. Distributions (:class:`Distrib
 * ``uniform``: ``min``, ``max``;
 * ``normal``: ``mean``, ``sd``, optional ``min``/``max`` (truncated there: values outside
   are not drawn, the density is renormalised);
-* ``lognormal``: ``mu``, ``sigma`` of ln(x) (median exp(mu)), optional ``min``/``max``
-  (truncated likewise).
+* ``lognormal``: ``mu``, ``sigma`` of ln(x) (median exp(mu); ``mu`` in [-10, 10],
+  ``sigma`` up to 5), optional ``min``/``max`` (truncated likewise).
 
 Drawing is reproducible: the run's seed (``seed``, default 0) seeds one generator, and each
 start area and quantity draws from its own stream derived from it, so adding a quantity to
@@ -52,6 +52,12 @@ _KINDS = {
 }
 _OPTIONAL = {"constant": (), "uniform": (), "normal": ("min", "max"),
              "lognormal": ("min", "max")}
+#: the range of a lognormal's ``mu``: a median exp(mu) from 4.5e-5 to 22,026 in the
+#: quantity's unit (s, m/s, m), beyond anything a premovement time, speed or radius takes
+#: (exp(mu) overflows from mu = 710 on)
+LOGNORMAL_MU = (-10.0, 10.0)
+#: the largest lognormal ``sigma``: its 99th percentile is then 1e5 times its median
+LOGNORMAL_SIGMA = 5.0
 
 
 @dataclass(frozen=True)
@@ -181,6 +187,15 @@ def distribution_from_spec(spec: Any, what: str, where: str, *,
         if not s > 0:
             raise GeometryError(f"{label}: '{'sd' if kind == 'normal' else 'sigma'}' must be "
                                 f"positive, got {s:g}")
+        if kind == "lognormal":
+            lo_mu, hi_mu = LOGNORMAL_MU
+            if not lo_mu <= d.mu <= hi_mu:
+                raise GeometryError(
+                    f"{label}: 'mu' must be in [{lo_mu:g}, {hi_mu:g}] (a median exp(mu) from "
+                    f"{math.exp(lo_mu):.2g} to {math.exp(hi_mu):.5g}), got {d.mu:g}")
+            if d.sigma > LOGNORMAL_SIGMA:
+                raise GeometryError(f"{label}: 'sigma' must be in (0, {LOGNORMAL_SIGMA:g}], "
+                                    f"got {d.sigma:g}")
         if d.min is not None and d.max is not None and not d.max > d.min:
             raise GeometryError(f"{label}: 'max' must exceed 'min' (got {d.min:g}, {d.max:g})")
         if kind == "normal" and d.min is None:

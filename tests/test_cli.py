@@ -120,7 +120,7 @@ def test_trajectories_load_in_pedpy(geometries_dir, tmp_path):
     (["--param", "foo=1"], "unknown parameter 'foo'"),
     (["--param", "dt=abc"], "parameter 'dt': 'abc' is not a number"),
     (["--param", "dt"], "--param expects NAME=VALUE, got 'dt'"),
-    (["--param", "tau=-1"], "parameter 'tau' must be positive"),
+    (["--param", "tau=-1"], "parameter 'tau' must be in [0.05, 100] s, got -1.0"),
     (["--model", "nope"], "unknown model 'nope'"),
     (["--t-end", "-5"], "t_end must be a positive number"),
 ])

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from .cmd_mesh import add_mesh_args, mesh_options
 from .cmd_presets import add_preset_arg
+from .cmd_run import add_max_people_arg
 
 HELP = "run several models on one room and write comparison plots and tables"
 DESCRIPTION = """\
@@ -42,6 +43,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", metavar="DIR", default=None,
                    help="output directory (default: runs/<geometry>-compare)")
     p.add_argument("--rerun", action="store_true", help="do not reuse finished runs")
+    add_max_people_arg(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress output")
 
 
@@ -61,14 +63,17 @@ def run(args: argparse.Namespace) -> int:
             times = [float(x) for x in args.times.split(",") if x.strip()]
         except ValueError:
             raise ParameterError(f"--times expects numbers, got '{args.times}'") from None
-    room, mesh = mesh_from_args(args)
+    from ..run.driver import check_crowd
+
+    room, mesh = mesh_from_args(args, check=lambda r: check_crowd(r, args.max_people))
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-compare"
     try:
         with stop_on_signals():  # Ctrl-C / SIGTERM: the running model stops after its step
             res = run_comparison(room, mesh, specs, out, t_end=args.t_end, quiet=args.quiet,
                                  geometry=str(args.geometry), density_times=times,
                                  mesh_options=mesh_options(args),
-                                 reuse=not args.rerun, preset=args.preset)
+                                 reuse=not args.rerun, preset=args.preset,
+                                 max_people=args.max_people)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}; finished models are kept and reused next time", file=sys.stderr)
         return 130

@@ -23,7 +23,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-o", "--output", required=True, metavar="FILE",
                    help="output file (.glb, .gltf, .obj, .ply or .stl)")
     p.add_argument("--wall-height", type=float, default=2.5, metavar="H",
-                   help="height of walls and obstacles in m (default: 2.5)")
+                   help="height of walls and obstacles in m, at most 1000 (default: 2.5)")
     p.add_argument("--run", metavar="RUN_DIR", default=None,
                    help="add the pedestrians of this social force run folder")
     p.add_argument("--time", type=float, default=None, metavar="T",
@@ -31,17 +31,23 @@ def add_args(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import math
     from pathlib import Path
 
     from ..errors import PedmeshError
     from ..io import load_room
-    from ..io.export3d import FORMATS, export_room_3d, read_positions
+    from ..io.export3d import FORMATS, MAX_SIZE_M, export_room_3d, read_positions
 
     if Path(args.output).suffix.lower() not in FORMATS:
         raise PedmeshError(f"{args.output}: unsupported 3-D format (use "
                            f"{', '.join(FORMATS)})")
     if args.time is not None and not args.run:
         raise PedmeshError("--time needs --run RUN_DIR (the run whose crowd to show)")
+    if args.time is not None and not (math.isfinite(args.time) and args.time >= 0):
+        raise PedmeshError(f"--time must be a finite number of seconds >= 0, got {args.time:g}")
+    if not (math.isfinite(args.wall_height) and 0 < args.wall_height <= MAX_SIZE_M):
+        raise PedmeshError(f"--wall-height must be a positive number of metres up to "
+                           f"{MAX_SIZE_M:g}, got {args.wall_height:g}")
     room = load_room(args.geometry)
     positions, note = None, ""
     if args.run:

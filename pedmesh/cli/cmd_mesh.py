@@ -55,14 +55,17 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="write the mesh to this .vtu file")
 
 
-def mesh_from_args(args: argparse.Namespace, *, buildings: bool = False):
+def mesh_from_args(args: argparse.Namespace, *, buildings: bool = False, check=None):
     """Load the room named on the command line and triangulate it; a building (levels and
-    stairs) only where the command handles one (``buildings``), else a one-line error."""
+    stairs) only where the command handles one (``buildings``), else a one-line error.
+    ``check``: called with the room before it is meshed (e.g. the crowd's size)."""
     from ..errors import PedmeshError
     from ..geometry import Building
     from ..io import load_room
 
     room = load_room(args.geometry)
+    if check is not None and not isinstance(room, Building):
+        check(room)
     if isinstance(room, Building):
         if not buildings:
             raise PedmeshError(f"{args.geometry}: '{room.name}' is a building (levels and "

@@ -42,6 +42,15 @@ examples:
 """.replace("{files}", _files())
 
 
+def add_max_people_arg(p: argparse.ArgumentParser) -> None:
+    """``--max-people N``: the largest crowd a run takes (pedmesh.run.driver.MAX_PEOPLE)."""
+    from ..run.driver import MAX_PEOPLE
+
+    p.add_argument("--max-people", type=int, default=None, metavar="N",
+                   help=f"refuse a crowd of more than N people, estimated from the start "
+                        f"areas before anything is allocated (default: {MAX_PEOPLE:,})")
+
+
 def add_args(p: argparse.ArgumentParser) -> None:
     from ..parameters import DEFAULT_T_END_S
 
@@ -65,6 +74,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--static-routes", action="store_true",
                    help="(particle models) keep the initial routes instead of re-solving "
                         "them from the density")
+    add_max_people_arg(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
@@ -79,8 +89,10 @@ def run(args: argparse.Namespace) -> int:
 
     entry = get_model(args.model)  # fail fast on an unknown model
     name = entry.name
+    from ..run.driver import check_crowd
+
     overrides = parse_overrides(args.param)
-    room, mesh = mesh_from_args(args)
+    room, mesh = mesh_from_args(args, check=lambda r: check_crowd(r, args.max_people))
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-{name}"
     from ..errors import ParameterError
 
@@ -98,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
             s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
                           quiet=args.quiet, geometry=str(args.geometry),
                           mesh_options=mesh_options(args),
-                          model_options=model_options, preset=args.preset)
+                          model_options=model_options, preset=args.preset,
+                          max_people=args.max_people)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}", file=sys.stderr)
         return 130

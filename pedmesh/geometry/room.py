@@ -15,7 +15,8 @@ Rules (checked in this order):
 * an exit is a segment or polyline of positive length that lies on the outline or on one
   obstacle's boundary within :data:`EXIT_TOLERANCE` (1e-6 m); exits do not overlap;
 * start areas lie in the walkable area (room minus obstacles) within the same tolerance and
-  give exactly one of ``count`` (pedestrians), ``spacing`` [m] or ``density`` [ped/m^2];
+  give exactly one of ``count`` (pedestrians), ``spacing`` [m] or ``density`` [ped/m^2],
+  at most :data:`MAX_START_DENSITY` (10 /m^2) people per m^2;
 * measurement lines and areas lie in the walkable area;
 * names are non-empty and unique within their kind.
 """
@@ -37,6 +38,7 @@ from .tolerances import EXIT_TOLERANCE
 
 __all__ = [
     "EXIT_TOLERANCE",
+    "MAX_START_DENSITY",
     "Points",
     "Obstacle",
     "Exit",
@@ -101,7 +103,22 @@ def _check_name(name: Any, kind: str) -> str:
     return name
 
 
+def _collinear(points: Points) -> bool:
+    """All points on one straight line (to round-off relative to the extent)."""
+    p = np.asarray(points, float)
+    d = p - p[0]
+    far = d[np.argmax(np.hypot(d[:, 0], d[:, 1]))]
+    scale = float(np.hypot(*far))
+    if scale == 0.0:
+        return True
+    cross = far[0] * d[:, 1] - far[1] * d[:, 0]
+    return bool(np.all(np.abs(cross) <= 1e-12 * scale * scale))
+
+
 def _polygon(points: Points, label: str) -> Polygon:
+    if _collinear(points):  # (a ring of them doubles back on itself: say what it is)
+        raise GeometryError(f"{label}: all {len(points)} points lie on one straight line, so "
+                            f"the polygon has zero area")
     ring = LinearRing(points)
     if not ring.is_simple:
         raise GeometryError(f"{label}: the outline intersects itself")
@@ -188,6 +205,11 @@ class Exit:
 #: lattice spacing [m] of an entrance's placeholder positions (:meth:`StartArea.positions`)
 ENTRANCE_SPACING = 0.5
 
+#: [ped/m^2] the densest crowd a start area may hold (by its spacing, density or count per
+#: area): local densities of about 10 /m^2 were measured in the densest crowds (Helbing,
+#: Johansson & Al-Abideen 2007), and the jam densities of the speed laws lie below
+MAX_START_DENSITY = 10.0
+
 
 @dataclass(frozen=True)
 class StartArea:
@@ -269,6 +291,8 @@ class StartArea:
         object.__setattr__(self, "count", _positive(self.count, "count", label, integer=True))
         object.__setattr__(self, "spacing", _positive(self.spacing, "spacing", label))
         object.__setattr__(self, "density", _positive(self.density, "density", label))
+        if self.arrivals is None:  # (an entrance's people arrive one by one)
+            self._check_density(label)
         from ..population import Distribution, distribution_from_spec, exit_choice_from_spec
 
         for key, positive in (("premovement", False), ("speed", True), ("radius", True)):
@@ -278,6 +302,36 @@ class StartArea:
                                                                      positive=positive))
         if self.exits is not None:
             object.__setattr__(self, "exits", exit_choice_from_spec(self.exits, label))
+
+    def _check_density(self, label: str) -> None:
+        """A one-line error for a crowd denser than :data:`MAX_START_DENSITY` (before any
+        lattice is made: a spacing of 1e-4 m would ask for 1e8 points per m^2)."""
+        top = MAX_START_DENSITY * (1.0 + 1e-9)  # (the limit itself passes, round-off aside)
+        if self.spacing is not None and 1.0 / self.spacing**2 > top:
+            raise GeometryError(
+                f"{label}: a spacing of {self.spacing:g} m packs {1.0 / self.spacing**2:.3g} "
+                f"people per m^2, more than the {MAX_START_DENSITY:g} /m^2 of the densest "
+                f"crowds (the spacing must be at least {MAX_START_DENSITY ** -0.5:.3g} m)")
+        if self.density is not None and self.density > top:
+            raise GeometryError(f"{label}: a density of {self.density:g} /m^2 is more than the "
+                                f"{MAX_START_DENSITY:g} /m^2 of the densest crowds")
+        if self.count is not None and self.count > max(1.0, top * self.shape.area):
+            # (one person may stand in an area of any size: the area marks the spot)
+            raise GeometryError(
+                f"{label}: {self.count} people in {self.shape.area:.3g} m^2 are "
+                f"{self.count / self.shape.area:.4g} /m^2, more than the "
+                f"{MAX_START_DENSITY:g} /m^2 of the densest crowds")
+
+    @property
+    def expected_count(self) -> float:
+        """About how many people the area holds, without placing them [ped]: ``count``, else
+        its area over spacing^2 or times the density (the lattice holds this many to within
+        its boundary rows). Runs check a crowd's size with it before anything is
+        allocated (:func:`pedmesh.run.driver.check_crowd`)."""
+        if self.count is not None:
+            return float(self.count)
+        rho = self.density if self.density is not None else 1.0 / self.spacing**2
+        return float(rho * self.shape.area)
 
     @cached_property
     def shape(self) -> Polygon:

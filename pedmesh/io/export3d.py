@@ -23,6 +23,7 @@ z-up, as Blender reads them.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -60,6 +61,11 @@ def _extrude(shape, height: float):
     return trimesh.util.concatenate(solids) if solids else None
 
 
+#: [m] the largest wall height, wall thickness, body radius or height taken (a taller wall
+#: is no room's; 1e300 made infinite vertices)
+MAX_SIZE_M = 1000.0
+
+
 def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
                wall_height: float = 2.5, wall_thickness: float = 0.2,
                body_radius: float = 0.2, body_height: float = 1.75, openings=()):
@@ -72,8 +78,9 @@ def room_scene(room, *, mesh=None, positions: np.ndarray | None = None,
 
     for label, v in (("wall_height", wall_height), ("wall_thickness", wall_thickness),
                      ("body_radius", body_radius), ("body_height", body_height)):
-        if not (np.isfinite(v) and v > 0):
-            raise PedmeshError(f"{label} must be a positive number of metres, got {v!r}")
+        if not (np.isfinite(v) and 0 < v <= MAX_SIZE_M):
+            raise PedmeshError(f"{label} must be a positive number of metres up to "
+                               f"{MAX_SIZE_M:g}, got {v!r}")
     tri = mesh if mesh is not None else triangulate(room, max_area=max(room.area / 2000.0, 0.5))
     scene = trimesh.Scene()
     floor = trimesh.Trimesh(np.column_stack([tri.points, np.zeros(tri.n_points)]),
@@ -187,6 +194,8 @@ def read_positions(run_dir: Path, t: float | None) -> tuple[float, np.ndarray]:
 
     from .vtk import read_pvd_index
 
+    if t is not None and not (isinstance(t, (int, float)) and math.isfinite(t) and t >= 0):
+        raise PedmeshError(f"the time must be a finite number of seconds >= 0, got {t!r}")
     pvd = Path(run_dir) / "pedestrians.pvd"
     if not pvd.exists():
         raise PedmeshError(f"{run_dir}: no pedestrians.pvd (a social force run folder?)")

@@ -21,8 +21,14 @@ from .output import RunWriter, _clean, file_sha256
 from ..models.protocol import RunModel
 
 __all__ = ["run_model", "build_model", "plan_run", "execute", "RunPlan", "run_settings",
-           "resolve_parameters", "check_options", "check_room_mesh", "RunInterrupted",
-           "request_stop", "stop_requested", "stop_on_signals"]
+           "resolve_parameters", "check_options", "check_room_mesh", "check_crowd",
+           "MAX_PEOPLE", "RunInterrupted", "request_stop", "stop_requested",
+           "stop_on_signals"]
+
+#: [ped] the largest crowd a run takes unless told otherwise (``--max-people``,
+#: ``max_people=`` in Python): a start area with a typo in its spacing or count would
+#: otherwise allocate gigabytes before anything is written
+MAX_PEOPLE = 1_000_000
 
 
 class RunInterrupted(Exception):
@@ -69,6 +75,28 @@ def resolve_parameters(entry: ModelEntry, room, *, preset: str | None = None,
                                     continuum=entry.scale == CONTINUUM)
 
 
+def check_crowd(room, max_people: int | None = None) -> float:
+    """The number of people the room's start areas hold (estimated from their areas,
+    before anyone is placed: :attr:`pedmesh.geometry.StartArea.expected_count`); a one-line
+    error if it is above ``max_people`` (None: :data:`MAX_PEOPLE`)."""
+    limit = MAX_PEOPLE if max_people is None else max_people
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+        raise ParameterError(f"max_people must be a positive whole number, got {limit!r}")
+    if room is None:
+        return 0.0
+    areas = getattr(room, "start_areas", ())
+    n = float(sum(a.expected_count for a in areas))
+    if n > limit:
+        big = max(areas, key=lambda a: a.expected_count)
+        most = (f" (start area '{big.name}': {big.expected_count:.3g})" if len(areas) > 1
+                else "")
+        raise ParameterError(
+            f"the start areas hold about {n:.3g} people{most}, more than the limit of "
+            f"{int(limit):,}; give --max-people N (max_people=N in Python) to run a crowd "
+            f"this large")
+    return n
+
+
 def check_options(entry: ModelEntry, options: Mapping[str, Any]) -> None:
     """A one-line error for a model option the model does not take."""
     unknown = sorted(set(options) - entry.options)
@@ -108,13 +136,16 @@ def check_room_mesh(room, mesh) -> None:
 
 
 def build_model(room, mesh, model: str, *, preset: str | None = None,
-                overrides: Mapping[str, Any] | None = None, **options: Any) -> RunModel:
+                overrides: Mapping[str, Any] | None = None, max_people: int | None = None,
+                **options: Any) -> RunModel:
     """The stepping form: model ``model`` built on ``mesh`` with its preset's parameters and
     ``overrides``, ready for ``step()`` (:class:`~pedmesh.models.protocol.RunModel`); nothing
-    is written. ``options``: the model options its registry entry lists (e.g. ``seed``)."""
+    is written. ``options``: the model options its registry entry lists (e.g. ``seed``).
+    ``max_people``: the largest crowd taken (:func:`check_crowd`)."""
     entry = get_model(model)
     check_options(entry, options)
     check_room_mesh(room, mesh)
+    check_crowd(room if room is not None else getattr(mesh, "room", None), max_people)
     _, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)
     run = entry.build(room, mesh, parameters, **options)
     if not isinstance(run, RunModel):
@@ -127,7 +158,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
               t_end: float = DEFAULT_T_END_S, out_dir: str | Path = "run", quiet: bool = False,
               geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
               model_options: dict[str, Any] | None = None,
-              preset: str | None = None) -> dict[str, Any]:
+              preset: str | None = None, max_people: int | None = None) -> dict[str, Any]:
     """Run ``model`` on ``mesh`` until everyone has left or ``t_end`` [s].
 
     The run owns ``out_dir`` (see :mod:`pedmesh.run.output`): it refuses a non-empty
@@ -136,11 +167,13 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     Raises :class:`RunInterrupted` on Ctrl-C or :func:`request_stop`,
     :class:`~pedmesh.errors.SimulationError` on a blow-up, and whatever else stopped the
     run (a bad parameter while the model is built, a full disk); in every case the summary
-    is written first, with status ``interrupted`` or ``failed`` and the error.
+    is written first, with status ``interrupted`` or ``failed`` and the error. A crowd
+    above ``max_people`` (:func:`check_crowd`) is refused before anything is written.
     """
     out = Path(out_dir)
     plan = plan_run(room, mesh, model, overrides=overrides, t_end=t_end, geometry=geometry,
-                    mesh_options=mesh_options, model_options=model_options, preset=preset)
+                    mesh_options=mesh_options, model_options=model_options, preset=preset,
+                    max_people=max_people)
     writer = RunWriter(out, plan.header, exit_names=mesh.exit_names)
     return execute(plan, writer, quiet=quiet, where=str(out))
 
@@ -163,12 +196,15 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
              t_end: float = DEFAULT_T_END_S, geometry: str | None = None,
              mesh_options: Mapping[str, Any] | None = None,
              model_options: Mapping[str, Any] | None = None,
-             preset: str | None = None) -> RunPlan:
-    """Check a run's request and resolve its parameters (see :func:`run_model`)."""
+             preset: str | None = None, max_people: int | None = None) -> RunPlan:
+    """Check a run's request and resolve its parameters (see :func:`run_model`); the crowd's
+    size is checked against ``max_people`` (:func:`check_crowd`) before anything big is
+    allocated."""
     if stop_requested():  # asked to stop before this run began (e.g. between compared models)
         raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a positive number of seconds, got {t_end!r}")
+    check_crowd(room if room is not None else getattr(mesh, "room", None), max_people)
     entry = get_model(model)
     check_room_mesh(room, mesh)
     overrides = dict(overrides or {})

@@ -329,7 +329,9 @@ def register_continuum_model(name: str, physics: Callable[..., MacroModel],
 
 def macro_model(name: str, **params) -> MacroModel:
     """The physics of continuum model ``name`` with the given parameters (the others at
-    their defaults), as the finite-volume core solves it."""
+    their defaults), as the finite-volume core solves it. Its values are checked against
+    the declarations' bounds only, not their physical ranges (a run checks those first, see
+    :mod:`pedmesh.parameters`), so that tests may switch a term off (``tau=1e30``)."""
     entry = get_model(name)
     if not isinstance(entry, ContinuumEntry):
         raise ParameterError(f"unknown continuum model '{name}'")

@@ -524,7 +524,7 @@ class BarotropicModel(MacroModel):
                  rho_jam: float = D['rho_jam'], gamma_w: float = D['gamma_w'],
                  rho_shift: float = D['rho_shift'], speed_table: str = D['speed_table']) -> None:
         for k, v in (("U_f", U_f), ("beta", beta), ("tau", tau), ("rho_cut", rho_cut)):
-            P.get(k).check(v)  # (the declarations' bounds, pedmesh.parameters)
+            P.get(k).check(v, physical=False)  # (bounds; the run checked the ranges)
         #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
         self.speed = SpeedLaw(speed_law, float(U_f), float(beta), float(rho_jam), float(gamma_w),
                               float(rho_shift), table=speed_table)

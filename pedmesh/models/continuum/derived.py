@@ -53,7 +53,7 @@ _SFM_KEYS = ("A", "B", "k", "kappa", "m", "r")
 
 def _sfm_kernels(A=D['A'], B=D['B'], k=D['k'], kappa=D['kappa'], m=D['m'], r=D['r']):
     for name, v in (("A", A), ("B", B), ("k", k), ("kappa", kappa), ("m", m), ("r", r)):
-        P.get(name).check(v)  # (the declarations' bounds, pedmesh.parameters)
+        P.get(name).check(v, physical=False)  # (bounds; the run checked the ranges)
     return SFMRepulsion(A=A, B=B, k=k, m=m, r_ij=2 * r), SFMFriction(kappa=kappa, m=m, r_ij=2 * r)
 
 
@@ -217,7 +217,7 @@ class Mac2(BarotropicModel):
             gamma1 = _g1(phi)
         for k_, v in (("gamma1", gamma1), ("lr_strength", lr_strength),
                       ("lr_length", lr_length)):
-            P.get(k_).check(v)
+            P.get(k_).check(v, physical=False)
         self.gamma1 = float(gamma1)
         self.lr = LongRange(strength=float(lr_strength), length=float(lr_length))
         law = PressureLaw.quadratic(self.gamma1) if local else PressureLaw.isothermal(0.0)

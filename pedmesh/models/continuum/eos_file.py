@@ -31,9 +31,14 @@ def load_eos(path: str | Path | None = None) -> dict:
     if not p.exists():
         raise PedmeshError(f"{p}: no such calibration file (run 'pedmesh calibrate')")
     try:
-        cal = json.loads(p.read_text())
+        cal = json.loads(p.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise PedmeshError(f"{p}: not a calibration file ({exc.msg})") from None
+    except UnicodeDecodeError:
+        raise PedmeshError(f"{p}: not a calibration file (not UTF-8 text; 'pedmesh "
+                           "calibrate' writes JSON)") from None
+    except IsADirectoryError:
+        raise PedmeshError(f"{p}: is a directory, not a calibration file") from None
     if not isinstance(cal, dict) or cal.get("format") != EOS_FORMAT:
         raise PedmeshError(f"{p}: not a pedmesh equation-of-state file")
     if cal.get("status") == "incomplete" or "fit" not in cal:

@@ -16,7 +16,7 @@ class PayneWhitham(BarotropicModel):
     """Payne-Whitham: momentum flux rho u (x) u + c0^2 rho I, relaxation to U_e(rho) e."""
 
     def __init__(self, c0: float = D['c0'], **kw) -> None:
-        P.get("c0").check(c0)
+        P.get("c0").check(c0, physical=False)
         super().__init__("pw", PressureLaw.isothermal(c0), **kw)
         self.c0 = float(c0)
 

@@ -112,7 +112,7 @@ class RDUE(MacroModel):
                  gamma_w: float = D['gamma_w'], rho_shift: float = D['rho_shift'],
                  speed_table: str = D['speed_table']) -> None:
         for k, v in (("U_f", U_f), ("beta", beta)):
-            P.get(k).check(v)  # (the declarations' bounds, pedmesh.parameters)
+            P.get(k).check(v, physical=False)  # (bounds; the run checked the ranges)
         self.U_f, self.beta = float(U_f), float(beta)
         #: the desired-speed law U_e(rho) (:mod:`pedmesh.speed`)
         self.speed = SpeedLaw(speed_law, self.U_f, self.beta, float(rho_jam), float(gamma_w),

@@ -107,6 +107,23 @@ class FVOptions:
         P.check_fields(self)
 
 
+def _blow_up_advice(model, cfl: float) -> str:
+    """What to change after a non-finite state: a smaller CFL number, and first any of the
+    model's parameters outside its physical range (a run refuses those before it starts;
+    physics built directly may hold them), named with the range."""
+    advice = f"try a smaller CFL number, e.g. --param cfl={cfl / 2:g}"
+    for name, v in model.parameters().items():
+        p = P.PARAMETERS.get(name)
+        if p is None or p.range is None or isinstance(v, bool) \
+                or not isinstance(v, (int, float)):
+            continue
+        if not p.range[0] <= v <= p.range[1]:
+            unit = "" if p.unit in ("", "-") else f" {p.unit}"
+            return (f"parameter '{name}' = {v:g}{unit} is outside its physical range "
+                    f"[{p.range[0]:g}, {p.range[1]:g}]{unit} (or {advice})")
+    return advice
+
+
 @dataclass
 class FVState:
     """Conserved cell averages and bookkeeping of a finite-volume run."""
@@ -560,10 +577,8 @@ class FVSolver:
         state.t = t + dt
         state.steps += 1
         if not np.all(np.isfinite(state.Q)):
-            raise SimulationError(
-                f"non-finite state at t = {state.t:.3f} s; try a smaller CFL number, e.g. "
-                f"--param cfl={self.cfl / 2:g}"
-            )
+            raise SimulationError(f"non-finite state at t = {state.t:.3f} s; "
+                                  + _blow_up_advice(self.model, self.cfl))
 
     def _stage(self, Q: np.ndarray, t: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """A forward-Euler stage of length ``dt`` [s] from ``Q`` at time ``t`` [s] (the
