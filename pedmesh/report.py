@@ -75,6 +75,12 @@ class ReportError(PedmeshError):
 
 # ------------------------------------------------------------------ small helpers
 def _esc(v: Any) -> str:
+    """Text for an element's content."""
+    return html.escape(str(v), quote=False)
+
+
+def _attr(v: Any) -> str:
+    """Text for an attribute's value (in double quotes)."""
     return html.escape(str(v), quote=True)
 
 
@@ -140,7 +146,7 @@ def _png_keep(fig, dpi: int = 100) -> str:
 
 
 def _img(uri: str, alt: str, cls: str = "plot") -> str:
-    return f'<img class="{cls}" src="{uri}" alt="{_esc(alt)}">'
+    return f'<img class="{cls}" src="{uri}" alt="{_attr(alt)}">'
 
 
 def _table(header: Sequence[str], rows: Iterable[Sequence[Any]], cls: str = "") -> str:
@@ -213,7 +219,8 @@ def folder_kind(path: str | Path) -> str:
                       "summary.json, comparison.csv or ensemble.csv)")
 
 
-def _find_room_file(geometry: str | None, base: Path, sha: str | None) -> tuple[Path | None, str]:
+def _find_room_file(geometry: str | None, base: Path,
+                    sha: str | None) -> tuple[Path | None, str]:
     """The room file a run names (as given, or relative to the run folder and the folders
     above it) and a note: '' when found with the recorded hash."""
     if not geometry:
@@ -1066,7 +1073,7 @@ def _spread_figure(ens: _Ensemble) -> str | None:
 
 
 # ------------------------------------------------------------------ HTML pieces
-def _key_numbers(runs: Sequence[_Run], comparison: Mapping | None = None) -> str:
+def _key_numbers(runs: Sequence[_Run]) -> str:
     """T50/T90/T100 and the counts per run (one row each), with the exact values of
     summary.json in each cell's title."""
     rows = []
@@ -1076,7 +1083,7 @@ def _key_numbers(runs: Sequence[_Run], comparison: Mapping | None = None) -> str
                  _people(s.get("n_initial")), _people(s.get("n_evacuated"))]
         for k in ("t_evac_50", "t_evac_90", "t_evac_100"):
             v = s.get(k)
-            cells.append(f'<span class="num" title="summary.json: {_esc(_exact(v))}">'
+            cells.append(f'<span class="num" title="summary.json: {_attr(_exact(v))}">'
                          f"{_sec(v)}</span>")
         pk = ((r.safety or {}).get("peak_density") or {}).get("value")
         if _is_num(pk):
@@ -1203,7 +1210,7 @@ def _exit_table(runs: Sequence[_Run]) -> str:
 def _slider(uid: str, images: list[str], labels: list[str], alt: str) -> str:
     if not images:
         return '<p class="na">No density frames were saved, so there are no snapshots.</p>'
-    data = json.dumps({"images": images, "labels": labels})
+    data = json.dumps({"images": images, "labels": labels}).replace("</", "<\\/")
     n = len(images)
     return (f'<div class="snapshots" id="{uid}">'
             f'<div class="controls"><button type="button" class="play" '
@@ -1211,7 +1218,7 @@ def _slider(uid: str, images: list[str], labels: list[str], alt: str) -> str:
             f'<input type="range" class="slider" min="0" max="{n - 1}" value="0" step="1" '
             f'aria-label="time of the snapshot">'
             f'<span class="snap-label">{_esc(labels[0])}</span></div>'
-            f'<img class="snap" src="{images[0]}" alt="{_esc(alt)}">'
+            f'<img class="snap" src="{images[0]}" alt="{_attr(alt)}">'
             f'<script type="application/json" class="snap-data">{data}</script></div>')
 
 
@@ -1280,7 +1287,8 @@ img.plot,img.snap{max-width:100%;height:auto;display:block;margin:.5em 0}
 .controls{display:flex;align-items:center;gap:.8em;margin:.4em 0}
 .controls input{flex:1}.snap-label{min-width:6em;font-weight:600}
 nav a{margin-right:1em}.na{color:#8a4b00;background:#fff6e5;padding:.4em .8em}
-ul.warnings li{color:#8a4b00}ul.warnings li.none{color:#1d1d1f}details{margin:.5em 0}summary{cursor:pointer;color:#1f5f99}
+ul.warnings li{color:#8a4b00}ul.warnings li.none{color:#1d1d1f}
+details{margin:.5em 0}summary{cursor:pointer;color:#1f5f99}
 code{font-size:.9em}footer{color:#777;font-size:.85em;margin-top:3em}
 """
 
@@ -1353,33 +1361,37 @@ class _Page:
 
 
 def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapping],
-                   frames: int, *, prefix: str = "", plan: bool = True) -> None:
-    """The sections of a group of runs shown side by side (one run: its own report)."""
+                   frames: int, *, prefix: str = "", level: int = 2) -> None:
+    """The sections of a group of runs shown side by side (one run: its own report);
+    ``level``: of their headings (2: in the page's navigation)."""
     single = len(runs) == 1
-    body = _key_numbers(runs)
+
+    def section(anchor: str, title: str, body: str) -> None:
+        page.section(prefix + anchor, title, body, level)
+
+    body = (_key_numbers(runs)
+            + "<p>T50, T90 and T100: the times at which half, 90 % and all of the people "
+            "were out, as the runs recorded them (hover for the exact value). Peak density: "
+            "the safety measure (over 1 m² or as stated) where the run has it, else the "
+            "largest cell value of the saved frames.</p>")
     for comp in comparisons:
         body += _comparison_table(comp)
-    page.section(f"{prefix}numbers", "Key numbers", body
-                 + "<p>T50, T90 and T100: the times at which half, 90 % and all of the "
-                 "people were out, as the runs recorded them (hover for the exact value). "
-                 "Peak density: the safety measure (over 1 m² or as stated) where the run "
-                 "has it, else the largest cell value of the saved frames.</p>")
-    if plan:
-        seen: dict = {}
-        figs = ""
-        for r in runs:
-            key = ((r.s.get("settings") or {}).get("room_sha256"), r.s.get("geometry"))
-            if key in seen:
-                continue
-            seen[key] = r
-            figs += _img(_plan_figure(r), f"plan of {r.s.get('room') or r.label}")
-        page.section(f"{prefix}plan", "Room plan", figs
-                     + "<p>Walls in black, exits in green (named), obstacles grey, the start "
-                     "areas blue with their people, measurement areas and lines purple.</p>")
-    page.section(f"{prefix}evacuation", "Evacuation", _img(_evac_figure(runs),
-                 "evacuation curve: people out against time"))
+    section("numbers", "Key numbers", body)
+    seen: dict = {}
+    figs = ""
+    for r in runs:
+        key = ((r.s.get("settings") or {}).get("room_sha256"), r.s.get("geometry"))
+        if key in seen:
+            continue
+        seen[key] = r
+        figs += _img(_plan_figure(r), f"plan of {r.s.get('room') or r.label}")
+    section("plan", "Room plan", figs
+            + "<p>Walls in black, exits in green (named), obstacles grey, the start areas "
+            "blue with their people, measurement areas and lines purple.</p>")
+    section("evacuation", "Evacuation", _img(_evac_figure(runs),
+                                             "evacuation curve: people out against time"))
     flow = _flow_figure(runs)
-    page.section(f"{prefix}exits", "Exit usage", _exit_table(runs)
+    section("exits", "Exit usage", _exit_table(runs)
                  + (_img(flow, "flow through the exits against time") if flow else "")
                  + "<p>People per exit as the run counted them (a continuum model's "
                  "integrated outflow); first and last passage where known.</p>")
@@ -1400,9 +1412,9 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
     if not maps:
         maps = '<p class="na">No density frames were saved, so there are no maps.</p>'
     maps += "<h3>Crowd-safety measures</h3>" + _safety_table(runs)
-    page.section(f"{prefix}density", "Density and safety", maps)
+    section("density", "Density and safety", maps)
     images, labels = _snapshots(runs, frames)
-    page.section(f"{prefix}snapshots", "Density over time",
+    section("snapshots", "Density over time",
                  _slider(page.uid("snap"), images, labels, "density snapshot")
                  + ("<p>Move the slider (or press play) to step through the saved frames. "
                     + ("Dots: the pedestrians. " if any(r.ped_frames for r in runs) else "")
@@ -1412,7 +1424,7 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
         inner = _settings_block(r)
         body += (inner if single else
                  f"<details><summary><b>{_esc(r.label)}</b></summary>{inner}</details>")
-    page.section(f"{prefix}settings", "Settings and provenance", body)
+    section("settings", "Settings and provenance", body)
 
 
 def _ensemble_sections(page: _Page, ens: _Ensemble, frames: int, idx: int) -> str:
@@ -1425,9 +1437,8 @@ def _ensemble_sections(page: _Page, ens: _Ensemble, frames: int, idx: int) -> st
         for k in ("t_evac_50", "t_evac_90", "t_evac_100"):
             st = pt.get(k) or {}
             row.append(" / ".join(_sec(st.get(q), "–") for q in ("p5", "p50", "p95")))
-            row.append(f"{_sec(st.get('mean'), '–')} ± "
-                       f"{st['std']:.1f} s" if _is_num(st.get("std")) else _sec(st.get("mean"),
-                                                                                 "–"))
+            mean = _sec(st.get("mean"), "–")
+            row.append(f"{mean} ± {st['std']:.1f} s" if _is_num(st.get("std")) else mean)
         rows.append(row)
     table = _table(["sweep point", "finished", "T50 p5 / p50 / p95", "T50 mean ± sd",
                     "T90 p5 / p50 / p95", "T90 mean ± sd", "T100 p5 / p50 / p95",
@@ -1440,7 +1451,9 @@ def _ensemble_sections(page: _Page, ens: _Ensemble, frames: int, idx: int) -> st
             "(5 %, median, 95 %), as ensemble.json has them.</p>" + table)
     bands = _bands_figure(ens)
     if bands:
-        body += _img(bands, "evacuation bands")
+        body += (_img(bands, "evacuation bands") + "<p>The median evacuation curve of each "
+                 "sweep point and its 5-95 % band: at each time, 90 % of the members had "
+                 "between the band's lower and upper number of people out.</p>")
     spread = _spread_figure(ens)
     if spread:
         body += _img(spread, "evacuation times of the members")
@@ -1493,10 +1506,10 @@ def _ensemble_sections(page: _Page, ens: _Ensemble, frames: int, idx: int) -> st
         if len(pts) > 1:
             sentence += f" {len(pts)} sweep points; see the table."
     if typ is not None:
-        page.add(f"<h2 id='{pre}typical'>A typical member: {_esc(typ.label)}</h2>"
-                 "<p>The member of the first sweep point whose T90 is nearest the median, "
-                 "shown in full.</p>")
-        _runs_sections(page, [typ], [], frames, prefix=f"{pre}typ-")
+        page.section(f"{pre}typical", f"A typical member: {typ.label}",
+                     "<p>The member of the first sweep point whose T90 is nearest the median, "
+                     "shown in full.</p>")
+        _runs_sections(page, [typ], [], frames, prefix=f"{pre}typ-", level=3)
     return sentence
 
 
@@ -1510,9 +1523,10 @@ def build_report(folders: Sequence[str | Path], *, frames: int = DEFAULT_FRAMES,
                           f"{frames!r}")
     runs, comparisons, ensembles = _load(folders)
     if title is None:
-        rooms = list(dict.fromkeys([str(r.s.get("room") or r.path.name) for r in runs]
-                                   + [Path(str(e.meta.get("geometry") or e.label)).stem
-                                      for e in ensembles]))
+        rooms = list(dict.fromkeys(
+            [str(r.s.get("room") or r.path.name) for r in runs]
+            + [str(e.typical.s.get("room")) if e.typical is not None and e.typical.s.get("room")
+               else Path(str(e.meta.get("geometry") or e.label)).stem for e in ensembles]))
         what = (", ".join(r.label for r in runs) if len(runs) <= 4
                 else f"{len(runs)} runs") if runs else ""
         if ensembles:
