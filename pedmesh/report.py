@@ -54,13 +54,15 @@ DEFAULT_FRAMES = 24
 #: most snapshots the slider takes (each is an inline image)
 MAX_FRAMES = 60
 
-#: Fruin's levels of service A-F by density [ped/m^2]: the upper density of A, B, C, D, E
-#: (F above). Fruin, *Pedestrian planning and design* (1971), in the metric form of the
-#: Highway Capacity Manual: walkways by area per person > 3.24, 2.32, 1.39, 0.93, 0.46 m^2;
-#: queuing areas > 1.21, 0.93, 0.65, 0.28, 0.19 m^2.
+#: one square foot [m^2]
+_FT2 = 0.09290304
+#: Fruin's levels of service A-F by density [ped/m^2]: the upper densities of A, B, C, D
+#: and E (F above). Fruin, *Pedestrian Planning and Design* (1971), gives them as area per
+#: person: walkways 35, 25, 15, 10, 5 ft^2 (3.25, 2.32, 1.39, 0.93, 0.46 m^2), queuing
+#: areas 13, 10, 7, 3, 2 ft^2 (1.21, 0.93, 0.65, 0.28, 0.19 m^2).
 FRUIN_LEVELS: dict[str, tuple[float, ...]] = {
-    "walkway": (1 / 3.24, 1 / 2.32, 1 / 1.39, 1 / 0.93, 1 / 0.46),
-    "queuing": (1 / 1.21, 1 / 0.93, 1 / 0.65, 1 / 0.28, 1 / 0.19),
+    "walkway": tuple(1.0 / (a * _FT2) for a in (35, 25, 15, 10, 5)),
+    "queuing": tuple(1.0 / (a * _FT2) for a in (13, 10, 7, 3, 2)),
 }
 _LOS = "ABCDEF"
 _LOS_COLORS = ["#1a9850", "#91cf60", "#d9ef8b", "#fee08b", "#fc8d59", "#d73027"]
@@ -623,9 +625,16 @@ def _run_sentences(run: _Run) -> list[str]:
                 "interrupted": "was interrupted", "failed": "failed",
                 "running": "was still running when this report was made"}.get(
                     run.status, f"has status '{run.status}'")
+        times = [f"{name} after {_sec(v)}" for name, v in
+                 (("half were out", t50), ("90 %", t90), ("everyone", t100)) if _is_num(v)]
+        missed = [name for name, v in (("T50", t50), ("T90", t90), ("T100", t100))
+                  if not _is_num(v)]
+        if missed:
+            miss = ", ".join(missed[:-1]) + (" and " if len(missed) > 1 else "") + missed[-1]
+            times.append(f"{miss} not reached")
+        tail = "; ".join(times)
         out.append(f"The run {what} at t = {_sec(stop, '?')}, with {_people(left)} of "
-                   f"{_people(n0)} people out; half were out after {_sec(t50)}, 90 % after "
-                   f"{_sec(t90)}, everyone: {_sec(t100)}.")
+                   f"{_people(n0)} people out; {tail}.")
     sf = run.safety
     room = run.room
     if sf is not None:
@@ -981,6 +990,10 @@ def _snapshots(runs: Sequence[_Run], n: int) -> tuple[list[str], list[str]]:
         arts.append((r, ax, tp, sc))
     cb = fig.colorbar(arts[0][2], ax=axes, shrink=0.85, extend="max")
     cb.set_label("density [ped/m²]")
+    for _, ax, _, _ in arts:
+        ax.set_title("t = 0000 s", fontsize=9)
+    fig.canvas.draw()  # lay the figure out once; the frames only change colours and titles
+    fig.set_layout_engine("none")
     images, labels = [], []
     for t in times:
         for r, ax, tp, sc in arts:
@@ -997,7 +1010,7 @@ def _snapshots(runs: Sequence[_Run], n: int) -> tuple[list[str], list[str]]:
             if sc is not None:
                 pos = None if ended else r.positions_at(float(fr.times[k]))
                 sc.set_offsets(np.zeros((0, 2)) if pos is None else pos)
-        images.append(_png_keep(fig, 90))
+        images.append(_png_keep(fig, 100))
         labels.append(f"t = {t:.0f} s")
     plt.close(fig)
     return images, labels
@@ -1407,8 +1420,8 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
             f", F above {edges[-1]:.2f} ped/m²"
         maps += ("<h3>Level of service</h3>" + _img(los, "level of service map")
                  + f"<p>Fruin's levels of service for {scale}s by density: {bounds} "
-                 "(Fruin 1971, metric thresholds of the Highway Capacity Manual), of each "
-                 "cell's peak density.</p>")
+                 "(Fruin 1971, his areas per person in m²), of each cell's peak density: "
+                 "the worst level the cell had.</p>")
     if not maps:
         maps = '<p class="na">No density frames were saved, so there are no maps.</p>'
     maps += "<h3>Crowd-safety measures</h3>" + _safety_table(runs)
