@@ -35,7 +35,6 @@ import html
 import io
 import json
 import math
-import os
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -404,8 +403,11 @@ class _Frames:
             return None
         if not index:
             return None
-        m = pv.read(index[0][1])
-        tri = _triangles(m)
+        try:
+            m = pv.read(index[0][1])
+            tri = _triangles(m)
+        except Exception:  # an unreadable frame (a run killed while writing it)
+            return None
         self = cls(np.array([t for t, _ in index], float), [f for _, f in index],
                    np.asarray(m.points)[:, :2].copy(), tri)
         self._cache[0] = _cell_density(m, tri)
@@ -583,7 +585,7 @@ def _load(folders: Sequence[str | Path]) -> tuple[list[_Run], list[dict], list[_
 
 
 # ------------------------------------------------------------------ words
-def _where(room, frames: _Frames | None, x: Any, y: Any) -> str:
+def _where(room, x: Any, y: Any) -> str:
     """Where (x, y) [m] is, in words: by an exit, in a measurement or start area, or the
     coordinates."""
     if not (_is_num(x) and _is_num(y)):
@@ -641,7 +643,7 @@ def _run_sentences(run: _Run) -> list[str]:
         pk = sf.get("peak_density") or {}
         if _is_num(pk.get("value")):
             unit = pk.get("unit") or "ped/m²"
-            where = _where(room, run.frames, pk.get("x"), pk.get("y"))
+            where = _where(room, pk.get("x"), pk.get("y"))
             over = f" (over {pk['over']})" if pk.get("over") else ""
             sentence = (f"The densest place was {_num(pk['value'], 3)} {unit}{over} at "
                         f"t = {_sec(pk.get('t'), '?')}" + (f", {where}" if where else ""))
@@ -668,7 +670,7 @@ def _run_sentences(run: _Run) -> list[str]:
             k = int(np.argmax(peak))
             x, y = fr.centroids[k]
             msg += (f"; the highest density in a mesh cell of the saved frames was "
-                    f"{peak[k]:.1f} /m² at t = {when[k]:.0f} s, {_where(room, fr, x, y)}")
+                    f"{peak[k]:.1f} /m² at t = {when[k]:.0f} s, {_where(room, x, y)}")
         out.append(msg + ".")
     ex = [e for e in run.exits() if _is_num(e["people"])]
     total = sum(float(e["people"]) for e in ex)
@@ -1578,8 +1580,3 @@ def write_report(folders: Sequence[str | Path], out: str | Path, *,
     _atomic_write(out, text)
     return out
 
-
-if __name__ == "__main__":  # pragma: no cover
-    import sys
-
-    print(write_report(sys.argv[1:-1], sys.argv[-1]), os.path.getsize(sys.argv[-1]))

@@ -13,6 +13,7 @@ import json
 import re
 import shutil
 import time
+from html import escape
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +47,10 @@ SAFETY = {
               "north": {"people": 27, "first": 1.35, "last": 11.85}},
     "clear_times": {"start_areas": {"crowd": 4.45}, "measurement_areas": {"front": 10.65}},
 }
+
+def html_escape(text: str) -> str:
+    return escape(text, quote=False)
+
 
 EXTERNAL = re.compile(r"""(?:src|href|srcset|action)\s*=\s*["']?\s*(?:https?:)?//""", re.I)
 
@@ -123,8 +128,13 @@ def test_run_reports_show_the_numbers_of_summary_json(reports, kind):
             assert json.dumps(s[key]) in html, key
             assert f"{s[key]:.1f} s" in html
         assert s["settings"]["room_sha256"] in html
-        for name, unit in s["units"].items():  # every parameter with its unit
-            assert f"<code>{name}</code>" in html
+        for name in s["parameters"]:  # every parameter with its value and unit
+            unit = s["units"].get(name) or "–"
+            value = s["parameters"][name]
+            value = value if isinstance(value, str) else json.dumps(value)
+            row = (f"<td><code>{name}</code></td><td>{html_escape(value)}</td>"
+                   f"<td>{html_escape(unit)}</td>")
+            assert row in html, name
         assert s["pedmesh_version"] in html
     for anchor in ("summary", "numbers", "plan", "evacuation", "exits", "density", "snapshots",
                    "settings"):
@@ -269,6 +279,31 @@ def test_bad_options_are_one_line(runs, tmp_path, capsys):
     assert main(["report", str(runs / "sfm"), "-o", str(tmp_path / "r.html"),
                  "--frames", "0"]) == 2
     assert "frames must be a whole number" in capsys.readouterr().err
+
+
+def test_help(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["report", "--help"])
+    assert info.value.code == 0
+    assert "usage: pedmesh report" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_example2_report_is_small_and_quick(geometries_dir, tmp_path):
+    """The issue's limits on the paper's Example 2 (2400 people): at most 25 MB, 30 s."""
+    run = tmp_path / "ex2-sfm"
+    assert main(["run", str(geometries_dir / "example2.json"), "--model", "sfm", "--out",
+                 str(run), "-q"]) == 0
+    t0 = time.perf_counter()
+    path = write_report([run], tmp_path / "ex2.html")
+    seconds = time.perf_counter() - t0
+    size = path.stat().st_size
+    print(f"Example 2 report: {size / 1e6:.2f} MB in {seconds:.1f} s")
+    assert seconds <= 30 and size <= 25e6
+    html = path.read_text(encoding="utf-8")
+    _self_contained(html)
+    s = _summary(run)
+    assert json.dumps(s["t_evac_50"]) in html and json.dumps(s["t_evac_90"]) in html
 
 
 # ------------------------------------------------------------------ in a real browser
