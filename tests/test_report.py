@@ -1,0 +1,375 @@
+"""`pedmesh report`: the HTML page of an SFM run, a continuum run, a compare folder and an
+ensemble folder on a small room; the numbers as summary.json has them; nothing loaded from
+outside; the safety table; one-line errors; and the pages in a real headless Chromium.
+
+The browser tests need Selenium (``pip install -e '.[browser]'``) and Debian's Chromium
+(``apt-get install chromium chromium-driver``); without them they skip, saying why."""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+import re
+import shutil
+import time
+from html import escape
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pedmesh.cli import main
+from pedmesh.report import ReportError, build_report, folder_kind, write_report
+
+ROOM = {
+    "format": "pedmesh-room", "version": 1, "name": "small_hall", "units": "m",
+    "outline": [[0, 0], [10, 0], [10, 6], [0, 6]],
+    "exits": [{"name": "east", "polyline": [[10, 2], [10, 3.5]]},
+              {"name": "north", "polyline": [[2, 6], [3.2, 6]]}],
+    "obstacles": [{"name": "pillar", "polygon": [[6, 2.5], [6.8, 2.5], [6.8, 3.3], [6, 3.3]]}],
+    "start_areas": [{"name": "crowd", "polygon": [[0.5, 0.5], [4.5, 0.5], [4.5, 5.5],
+                                                  [0.5, 5.5]], "count": 30}],
+    "measurement_areas": [{"name": "front", "polygon": [[8, 1.5], [9.8, 1.5], [9.8, 4],
+                                                         [8, 4]]}],
+}
+
+SAFETY = {
+    "peak_density": {"value": 5.125, "unit": "ped/m^2", "t": 8.5, "x": 9.25, "y": 2.75,
+                     "over": "1 m^2 (Voronoi)"},
+    "area_time_above": {"2": 123.5, "4": 41.25, "6": 0.0},
+    "area_time_unit": "m^2 s",
+    "time_above": {"2": 9.75, "4": 3.5, "6": 0.0},
+    "level_of_service": {"scale": "walkway", "worst": "F",
+                         "cells_by_worst": {"A": 17, "B": 3, "C": 4, "D": 5, "E": 6, "F": 7}},
+    "crowd_pressure": {"max": 0.0215, "unit": "1/s^2", "t": 7.25, "x": 9.5, "y": 3.0},
+    "exits": {"east": {"people": 3, "first": 5.05, "last": 6.55},
+              "north": {"people": 27, "first": 1.35, "last": 11.85}},
+    "clear_times": {"start_areas": {"crowd": 4.45}, "measurement_areas": {"front": 10.65}},
+}
+
+def html_escape(text: str) -> str:
+    return escape(text, quote=False)
+
+
+EXTERNAL = re.compile(r"""(?:src|href|srcset|action)\s*=\s*["']?\s*(?:https?:)?//""", re.I)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """A small room with an SFM run and an eos run, and a compare folder of both."""
+    d = tmp_path_factory.mktemp("report")
+    room = d / "small_hall.json"
+    room.write_text(json.dumps(ROOM))
+    for model in ("sfm", "eos"):
+        assert main(["run", str(room), "--model", model, "--out", str(d / model), "-q"]) == 0
+    cmp_dir = d / "compare"
+    cmp_dir.mkdir()
+    for model in ("sfm", "eos"):  # reused by compare (same settings)
+        shutil.copytree(d / model, cmp_dir / model)
+    assert main(["compare", str(room), "--models", "sfm,eos", "--out", str(cmp_dir),
+                 "-q"]) == 0
+    return d
+
+
+@pytest.fixture(scope="module")
+def ensemble_dir(runs):
+    pytest.importorskip("distributed")
+    pytest.importorskip("pandas")
+    from pedmesh.ensembles import ensemble
+
+    out = runs / "ensemble"
+    ensemble(runs / "small_hall.json", "sfm", members=3, out=out, workers=1, quiet=True,
+             sweep={"U_f": [1.0, 1.34]})
+    return out
+
+
+@pytest.fixture(scope="module")
+def reports(runs, ensemble_dir):
+    """The report of each kind of folder: {kind: (html path, [run folders it shows])}."""
+    out = {}
+    for kind, folder, shown in (("sfm", runs / "sfm", [runs / "sfm"]),
+                                ("eos", runs / "eos", [runs / "eos"]),
+                                ("compare", runs / "compare",
+                                 [runs / "compare" / "sfm", runs / "compare" / "eos"]),
+                                ("ensemble", ensemble_dir, [])):
+        t0 = time.perf_counter()
+        path = write_report([folder], runs / f"{kind}.html", frames=8)
+        out[kind] = (path, shown, time.perf_counter() - t0)
+    return out
+
+
+def _summary(folder: Path) -> dict:
+    return json.loads((folder / "summary.json").read_text())
+
+
+def _images(html: str) -> list[bytes]:
+    return [base64.b64decode(m) for m in re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)",
+                                                     html)]
+
+
+def _self_contained(html: str) -> None:
+    assert not EXTERNAL.search(html)
+    assert "http://" not in html and "https://" not in html
+    assert "<link rel=\"stylesheet\"" not in html and "<script src" not in html
+    for png in _images(html):
+        assert png.startswith(b"\x89PNG\r\n\x1a\n")
+
+
+@pytest.mark.parametrize("kind", ["sfm", "eos", "compare"])
+def test_run_reports_show_the_numbers_of_summary_json(reports, kind):
+    path, shown, _ = reports[kind]
+    html = path.read_text(encoding="utf-8")
+    _self_contained(html)
+    for folder in shown:
+        s = _summary(folder)
+        for key in ("t_evac_50", "t_evac_90", "t_evac_100"):
+            # exactly as summary.json writes it, and as pedmesh run prints it
+            assert json.dumps(s[key]) in html, key
+            assert f"{s[key]:.1f} s" in html
+        assert s["settings"]["room_sha256"] in html
+        for name in s["parameters"]:  # every parameter with its value and unit
+            unit = s["units"].get(name) or "–"
+            value = s["parameters"][name]
+            value = value if isinstance(value, str) else json.dumps(value)
+            row = (f"<td><code>{name}</code></td><td>{html_escape(value)}</td>"
+                   f"<td>{html_escape(unit)}</td>")
+            assert row in html, name
+        assert s["pedmesh_version"] in html
+    for anchor in ("summary", "numbers", "plan", "evacuation", "exits", "density", "snapshots",
+                   "settings"):
+        assert f'id="{anchor}"' in html, anchor
+    assert "Everyone out after" in html
+    assert "not available" in html  # these runs have no safety section
+    assert "'east'" in html and "'north'" in html  # exit usage
+    data = json.loads(re.search(r'<script type="application/json" class="snap-data">(.*?)'
+                                r"</script>", html).group(1))
+    assert 2 <= len(data["images"]) <= 8 and len(data["labels"]) == len(data["images"])
+    assert len(set(data["images"])) == len(data["images"])
+
+
+def test_compare_report_puts_the_models_side_by_side(reports, runs):
+    html = reports["compare"][0].read_text(encoding="utf-8")
+    rows = (runs / "compare" / "comparison.csv").read_text().splitlines()
+    assert "evac_curve_distance" in rows[0] and "evac_curve_distance" in html
+    assert html.count("<summary><b>sfm</b></summary>") == 1
+    assert html.count("<summary><b>eos</b></summary>") == 1
+    assert "sfm: t = " in html or "sfm</b>" in html
+
+
+def test_ensemble_report_shows_bands_and_percentiles(reports, ensemble_dir):
+    path, _, _ = reports["ensemble"]
+    html = path.read_text(encoding="utf-8")
+    _self_contained(html)
+    meta = json.loads((ensemble_dir / "ensemble.json").read_text())
+    for pt in meta["points"]:
+        for key in ("t_evac_50", "t_evac_90", "t_evac_100"):
+            st = pt[key]
+            assert " / ".join(f"{st[q]:.1f} s" for q in ("p5", "p50", "p95")) in html
+    assert "U_f = 1.34" in html and "U_f = 1" in html
+    assert "sweep point and its 5-95 % band" in html
+    assert "A typical member" in html
+    # the typical member's own numbers, exactly
+    m = re.search(r"A typical member: member (\d{3}-\d{4})", html)
+    s = _summary(ensemble_dir / "members" / m.group(1))
+    assert json.dumps(s["t_evac_90"]) in html
+    assert html.count("ensemble.csv") >= 1
+
+
+def test_reports_are_quick_and_small(reports):
+    for kind, (path, _, seconds) in reports.items():
+        assert path.stat().st_size < 3e6, kind
+        assert seconds < 60, kind
+
+
+def test_several_run_folders_side_by_side(runs):
+    html = build_report([runs / "sfm", runs / "eos"], frames=4)
+    _self_contained(html)
+    for model in ("sfm", "eos"):
+        s = _summary(runs / model)
+        assert json.dumps(s["t_evac_90"]) in html
+        assert f"<p><b>{model}</b>: Everyone out after {s['t_evac_100']:.1f} s" in html
+
+
+def test_safety_section_is_shown(runs, tmp_path):
+    run = tmp_path / "with-safety"
+    shutil.copytree(runs / "sfm", run)
+    s = _summary(run)
+    s["safety"] = SAFETY
+    (run / "summary.json").write_text(json.dumps(s, indent=2))
+    html = build_report([run], frames=3)
+    table = re.search(r'<table class="safety">(.*?)</table>', html, re.S).group(1)
+    for text in ("5.125 ped/m^2 at t = 8.5 s at x = 9.25 m, y = 2.75 m", "1 m^2 (Voronoi)",
+                 "area-time above 2 /m²</td><td>123.5 m^2 s",
+                 "area-time above 4 /m²</td><td>41.25 m^2 s",
+                 "area-time above 6 /m²</td><td>0 m^2 s",
+                 "time above 2 /m²</td><td>9.75 s", "time above 4 /m²</td><td>3.5 s",
+                 "time above 6 /m²</td><td>0 s",
+                 "worst F; cells by their worst level: A: 17, B: 3, C: 4, D: 5, E: 6, F: 7",
+                 "0.0215 1/s^2 at t = 7.25 s at x = 9.5 m, y = 3 m",
+                 "3 people, first at 5.05 s, last at 6.55 s",
+                 "27 people, first at 1.35 s, last at 11.85 s",
+                 "start area 'crowd' clear after</td><td>4.45 s",
+                 "measurement area 'front' clear after</td><td>10.65 s"):
+        assert text in table, text
+    # the plain-language summary says it too
+    assert "The densest place was 5.12 ped/m^2 (over 1 m^2 (Voronoi)) at t = 8.5 s" in html
+    assert "in front of exit 'east'" in html
+    assert "above 4 /m² for 3.5 s" in html
+    assert "The worst level of service (Fruin, walkway) was F." in html
+    # people per exit from the safety section
+    exits = re.search(r"<h2>Exit usage</h2><table>(.*?)</table>", html, re.S).group(1)
+    assert "<td>'east'</td><td>3</td><td>10 %</td><td>5.0 s</td><td>6.5 s</td>" in exits
+    # a continuum run has no crowd pressure
+    s["safety"] = {**SAFETY, "crowd_pressure": None}
+    (run / "summary.json").write_text(json.dumps(s, indent=2))
+    assert "not applicable" in build_report([run], frames=2)
+
+
+def test_old_run_without_room_file_or_frames(runs, tmp_path):
+    """A run whose room file is gone is drawn from its mesh; one without frames says so."""
+    run = tmp_path / "moved"
+    shutil.copytree(runs / "eos", run)
+    s = _summary(run)
+    s["geometry"] = "gone/room.json"
+    (run / "summary.json").write_text(json.dumps(s))
+    html = build_report([run], frames=2)
+    assert "the room file gone/room.json was not found" in html
+    assert "mesh outline" in html or "data:image/png" in html
+    shutil.rmtree(run / "density")
+    (run / "density.pvd").unlink()
+    html = build_report([run], frames=2)
+    assert "no density frames were saved" in html.lower()
+    assert json.dumps(s["t_evac_50"]) in html
+
+
+def test_cli_writes_the_report(runs, tmp_path, capsys):
+    out = tmp_path / "sub" / "r.html"
+    assert main(["report", str(runs / "eos"), "-o", str(out), "--frames", "3"]) == 0
+    assert out.is_file()
+    assert f"wrote {out}" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("case, message", [
+    ("missing", "no such folder"),
+    ("file", "not a folder"),
+    ("empty", "not a pedmesh run, compare or ensemble folder"),
+    ("bad-summary", "not the summary of a pedmesh run"),
+])
+def test_not_a_run_folder_is_one_line(tmp_path, capsys, case, message):
+    d = tmp_path / case
+    if case == "file":
+        d.write_text("x")
+    elif case == "empty":
+        d.mkdir()
+        (d / "notes.txt").write_text("x")
+    elif case == "bad-summary":
+        d.mkdir()
+        (d / "summary.json").write_text('{"a": 1}')
+    assert main(["report", str(d), "-o", str(tmp_path / "r.html")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and err[0].startswith("pedmesh: error:")
+    with pytest.raises(ReportError):
+        folder_kind(d)
+
+
+def test_bad_options_are_one_line(runs, tmp_path, capsys):
+    assert main(["report", str(runs / "sfm"), "-o", str(tmp_path / "r.txt")]) == 2
+    assert "use a .html suffix" in capsys.readouterr().err
+    assert main(["report", str(runs / "sfm"), "-o", str(tmp_path / "r.html"),
+                 "--frames", "0"]) == 2
+    assert "frames must be a whole number" in capsys.readouterr().err
+
+
+def test_help(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["report", "--help"])
+    assert info.value.code == 0
+    assert "usage: pedmesh report" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_example2_report_is_small_and_quick(geometries_dir, tmp_path):
+    """The issue's limits on the paper's Example 2 (2400 people): at most 25 MB, 30 s."""
+    run = tmp_path / "ex2-sfm"
+    assert main(["run", str(geometries_dir / "example2.json"), "--model", "sfm", "--out",
+                 str(run), "-q"]) == 0
+    t0 = time.perf_counter()
+    path = write_report([run], tmp_path / "ex2.html")
+    seconds = time.perf_counter() - t0
+    size = path.stat().st_size
+    print(f"Example 2 report: {size / 1e6:.2f} MB in {seconds:.1f} s")
+    assert seconds <= 30 and size <= 25e6
+    html = path.read_text(encoding="utf-8")
+    _self_contained(html)
+    s = _summary(run)
+    assert json.dumps(s["t_evac_50"]) in html and json.dumps(s["t_evac_90"]) in html
+
+
+# ------------------------------------------------------------------ in a real browser
+@pytest.fixture(scope="module")
+def browser():
+    pytest.importorskip("selenium", reason="selenium is not installed (pip install -e "
+                                           "'.[browser]')")
+    from pedmesh._browser import BrowserUnavailable, headless_chromium
+
+    try:
+        driver = headless_chromium(1200, 900)
+    except BrowserUnavailable as exc:
+        pytest.skip(str(exc))
+    yield driver
+    driver.quit()
+
+
+def _not_blank(png: bytes) -> None:
+    from PIL import Image
+
+    im = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), float)
+    assert im.shape[0] > 100 and im.shape[1] > 100
+    assert im.std() > 20  # text and plots, not one colour
+    assert len(np.unique(im.reshape(-1, 3), axis=0)) > 100
+
+
+@pytest.mark.parametrize("kind", ["sfm", "eos", "compare", "ensemble"])
+def test_report_in_headless_chromium(browser, reports, kind):
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    path, shown, _ = reports[kind]
+    browser.get_log("browser")  # drop what an earlier page logged
+    browser.get(path.resolve().as_uri())
+    assert browser.execute_script("return document.readyState") == "complete"
+    severe = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
+    assert severe == []
+    # every image decoded
+    broken = browser.execute_script(
+        "return Array.from(document.images).filter(i => !(i.complete && i.naturalWidth > 0))"
+        ".length")
+    assert broken == 0
+    # the key numbers are on the page, as a person sees them
+    text = browser.find_element(By.TAG_NAME, "body").text
+    for folder in shown:
+        s = _summary(folder)
+        for key in ("t_evac_50", "t_evac_90", "t_evac_100"):
+            assert f"{s[key]:.1f} s" in text
+    if kind == "ensemble":
+        assert "5-95 %" in text
+    # the slider changes the picture
+    box = browser.find_element(By.CSS_SELECTOR, ".snapshots")
+    img = box.find_element(By.CSS_SELECTOR, "img.snap")
+    slider = box.find_element(By.CSS_SELECTOR, "input.slider")
+    label = box.find_element(By.CSS_SELECTOR, ".snap-label")
+    before, before_label = img.get_attribute("src"), label.text
+    browser.execute_script("arguments[0].scrollIntoView()", slider)
+    slider.send_keys(Keys.END)
+    assert slider.get_attribute("value") == slider.get_attribute("max") != "0"
+    assert img.get_attribute("src") != before
+    assert label.text != before_label
+    slider.send_keys(Keys.HOME)
+    assert img.get_attribute("src") == before
+    assert browser.execute_script("return arguments[0].naturalWidth", img) > 0
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+    # a screenshot of the top of the page and of the snapshot is not blank
+    browser.execute_script("window.scrollTo(0, 0)")
+    _not_blank(browser.get_screenshot_as_png())
+    _not_blank(img.screenshot_as_png)
