@@ -43,6 +43,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from ._version import __version__
+from .analysis.safety import FRUIN_SCALES, level_of_service
 from .errors import PedmeshError
 
 __all__ = ["ReportError", "write_report", "build_report", "folder_kind", "FRUIN_LEVELS",
@@ -53,16 +54,11 @@ DEFAULT_FRAMES = 24
 #: most snapshots the slider takes (each is an inline image)
 MAX_FRAMES = 60
 
-#: one square foot [m^2]
-_FT2 = 0.09290304
 #: Fruin's levels of service A-F by density [ped/m^2]: the upper densities of A, B, C, D
-#: and E (F above). Fruin, *Pedestrian Planning and Design* (1971), gives them as area per
-#: person: walkways 35, 25, 15, 10, 5 ft^2 (3.25, 2.32, 1.39, 0.93, 0.46 m^2), queuing
-#: areas 13, 10, 7, 3, 2 ft^2 (1.21, 0.93, 0.65, 0.28, 0.19 m^2).
+#: and E (F above), walkway and queuing, from the one definition of the tables in
+#: :mod:`pedmesh.analysis.safety` (Fruin 1971, in ft^2 per person)
 FRUIN_LEVELS: dict[str, tuple[float, ...]] = {
-    "walkway": tuple(1.0 / (a * _FT2) for a in (35, 25, 15, 10, 5)),
-    "queuing": tuple(1.0 / (a * _FT2) for a in (13, 10, 7, 3, 2)),
-}
+    name: tuple(lv.max_density for lv in levels[:-1]) for name, levels in FRUIN_SCALES.items()}
 _LOS = "ABCDEF"
 _LOS_COLORS = ["#1a9850", "#91cf60", "#d9ef8b", "#fee08b", "#fc8d59", "#d73027"]
 #: density [ped/m^2] at the top of the colour scale of the density maps
@@ -184,9 +180,10 @@ def _moving_mean(t: np.ndarray, flow: np.ndarray, window: float = 2.0) -> np.nda
 
 
 def _los_index(rho: np.ndarray, scale: str = "walkway") -> np.ndarray:
-    """Fruin's level of service (0 = A ... 5 = F) of densities ``rho`` [ped/m^2]."""
-    edges = FRUIN_LEVELS.get(scale, FRUIN_LEVELS["walkway"])
-    return np.searchsorted(np.asarray(edges), np.asarray(rho, float), side="left")
+    """Fruin's level of service (0 = A ... 5 = F) of densities ``rho`` [ped/m^2]
+    (:func:`pedmesh.analysis.safety.level_of_service`)."""
+    return level_of_service(density=np.asarray(rho, float),
+                            scale=scale if scale in FRUIN_SCALES else "walkway")
 
 
 def _los_scale(safety: Mapping | None) -> str:
@@ -898,6 +895,25 @@ def _map_grid(n: int) -> tuple[int, int]:
     return math.ceil(n / cols), cols
 
 
+def _safety_maps(r: "_Run", fr) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Each cell's peak density [ped/m^2] and worst level of service (0-5) of a run: the
+    crowd-safety measures' own maps (``safety.vtu``, the density on 1 m^2) where the run
+    wrote them on the frames' mesh, else the peaks of the saved frames; and which."""
+    path = r.path / "safety.vtu"
+    if path.is_file():
+        try:
+            from .io.vtk import read_vtu
+
+            _, tri, _, cells = read_vtu(path, cell_arrays=("peak_density", "worst_los"))
+            if len(tri) == len(fr.triangles):
+                return (np.asarray(cells["peak_density"], float),
+                        np.asarray(cells["worst_los"]).astype(int), True)
+        except Exception:  # (a damaged file: fall back to the frames, and say so)
+            r.notes.append(f"{path.name} could not be read; the maps use the saved frames")
+    peak, _ = fr.peak
+    return peak, _los_index(peak, _los_scale(r.safety)), False
+
+
 def _maps_figure(runs: Sequence[_Run], what: str) -> str | None:
     """Peak density (``what='peak'``) or worst level of service (``'los'``) per cell,
     one panel per run."""
@@ -919,13 +935,13 @@ def _maps_figure(runs: Sequence[_Run], what: str) -> str | None:
             continue
         r = have[i]
         fr = r.frames
-        peak, _ = fr.peak
+        peak, worst, measured = _safety_maps(r, fr)
         if what == "peak":
             mappable = ax.tripcolor(fr.points[:, 0], fr.points[:, 1], fr.triangles,
                                     facecolors=peak, vmin=0, vmax=_VMAX, cmap="magma_r",
                                     shading="flat")
         else:
-            idx = _los_index(peak, _los_scale(r.safety))
+            idx = worst
             cmap = ListedColormap(_LOS_COLORS)
             mappable = ax.tripcolor(fr.points[:, 0], fr.points[:, 1], fr.triangles,
                                     facecolors=idx.astype(float), cmap=cmap,
@@ -937,8 +953,10 @@ def _maps_figure(runs: Sequence[_Run], what: str) -> str | None:
             ax.set_title(r.label, fontsize=9)
     if what == "peak":
         cb = fig.colorbar(mappable, ax=axes, shrink=0.85, extend="max")
-        cb.set_label("peak density [ped/m²]")
-        fig.suptitle("largest density of each mesh cell over the run", fontsize=10)
+        cb.set_label("peak density [ped/m²]" + (" on 1 m²" if measured else ""))
+        fig.suptitle("largest density of each mesh cell over the run"
+                     + (" (safety.vtu: on 1 m²)" if measured else " (the saved frames)"),
+                     fontsize=10)
     else:
         cb = fig.colorbar(mappable, ax=axes, shrink=0.85, ticks=range(6))
         cb.ax.set_yticklabels(list(_LOS))
