@@ -451,7 +451,7 @@ def test_unknown_parameter_is_refused_before_any_cluster(room_b, tmp_path, capsy
     monkeypatch.setattr(distributed, "LocalCluster", no_cluster)
     monkeypatch.setattr(distributed, "Client", no_cluster)
     for args, name in ((["--sweep", "foo=1,2"], "foo"), (["--param", "bar=1"], "bar"),
-                       (["--model", "eos", "--sweep", "dt=0.1,0.2"], "dt")):
+                       (["--model", "eos", "--sweep", "dt=0.01,0.02"], "dt")):
         assert main(["ensemble", str(room_b), "--members", "1", "--out",
                      str(tmp_path / "x"), "-q", *args]) == 2
         err = capsys.readouterr().err.strip().splitlines()
