@@ -129,8 +129,9 @@ LAYERS: list[tuple[str, ...]] = [
     ("pedmesh.analysis",),
     ("pedmesh.models",),
     ("pedmesh.run",),
-    ("pedmesh.api", "pedmesh.compare", "pedmesh.ensembles", "pedmesh.calibration",
-     "pedmesh.validation", "pedmesh.plotting", "pedmesh.fitting"),
+    ("pedmesh.api", "pedmesh.animate", "pedmesh.report", "pedmesh.compare",
+     "pedmesh.ensembles", "pedmesh.calibration", "pedmesh.validation", "pedmesh.plotting",
+     "pedmesh.fitting", "pedmesh._browser"),
     ("pedmesh.cli", "pedmesh.__main__", "pedmesh"),
 ]
 

@@ -23,6 +23,7 @@ SUBCOMMANDS = {
     "ensemble": "pedmesh.cli.cmd_ensemble",
     "export": "pedmesh.cli.cmd_export",
     "presets": "pedmesh.cli.cmd_presets",
+    "animate": "pedmesh.cli.cmd_animate",
     "report": "pedmesh.cli.cmd_report",
 }
 

@@ -1,0 +1,158 @@
+"""An animation of a run: the density field (continuum models) or the crowd (particle
+models) over the room, with a clock, as MP4 or GIF (``pedmesh animate``).
+
+The frames are the run's own output frames (``density.pvd``, ``pedestrians.pvd``, one per
+output interval). MP4 is written with the ffmpeg binary of the ``imageio-ffmpeg`` wheel
+through matplotlib's writer, GIF with Pillow: nothing needs a system ffmpeg.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import PedmeshError
+
+__all__ = ["animate_run", "FORMATS"]
+
+#: the file types :func:`animate_run` writes
+FORMATS = (".mp4", ".gif")
+#: [ped/m^2] the top of the colour scale
+VMAX = 6.0
+
+
+class _Frames:
+    """A run's output frames (density, and for particle models the pedestrians)."""
+
+    def __init__(self, run_dir: Path) -> None:
+        from .io.vtk import read_pvd_index
+        from .run.results import RunResult
+
+        self.dir = run_dir
+        self.result = RunResult.load(run_dir)
+        pvd = run_dir / "density.pvd"
+        if not pvd.is_file():
+            raise PedmeshError(f"{run_dir}: no density.pvd (not a run folder, or a run "
+                               "that wrote no frames)")
+        self.density = read_pvd_index(pvd)
+        if not self.density:
+            raise PedmeshError(f"{pvd}: no frames")
+        peds = run_dir / "pedestrians.pvd"
+        self.pedestrians = dict(read_pvd_index(peds)) if peds.is_file() else {}
+
+    def field(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(points (n, 2), triangles (m, 3), cell density (m,) [ped/m^2]) of frame k."""
+        from .io.vtk import read_vtu
+
+        pts, tri, pd, cd = read_vtu(self.density[k][1])
+        if "rho" in cd:
+            rho = np.asarray(cd["rho"], float)
+        else:  # the social force model's kernel density at the vertices
+            rho = np.asarray(pd["density"], float)[tri].mean(axis=1)
+        return np.asarray(pts)[:, :2], np.asarray(tri), rho
+
+    def crowd(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """(positions (k, 2) [m], speeds (k,) [m/s]) of the pedestrians frame at ``t``."""
+        from .io.vtk import read_vtp
+
+        path = self.pedestrians.get(t)
+        if path is None:
+            return None
+        pts, data = read_vtp(path)
+        speed = np.asarray(data.get("speed", np.zeros(len(pts))), float)
+        return np.asarray(pts)[:, :2], speed
+
+
+def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
+                max_frames: int = 600, dpi: int = 100) -> Path:
+    """Write the animation of the run in ``run_dir`` to ``out`` (.mp4 or .gif): one picture
+    per output frame (at most ``max_frames``, evenly picked), ``fps`` pictures per second of
+    video. Returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib import animation
+
+    out = Path(out)
+    suffix = out.suffix.lower()
+    if suffix not in FORMATS:
+        raise PedmeshError(f"{out}: the animation is written as {' or '.join(FORMATS)}; "
+                           "use one of those suffixes")
+    if not (np.isfinite(fps) and 0.1 <= fps <= 120):
+        raise PedmeshError(f"--fps must be between 0.1 and 120 frames per second, got {fps!r}")
+    if not (isinstance(max_frames, int) and max_frames >= 1):
+        raise PedmeshError(f"--max-frames must be a positive whole number, got {max_frames!r}")
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise PedmeshError(f"{run_dir}: no such run folder")
+    frames = _Frames(run_dir)
+    s = frames.result.summary
+    pick = np.unique(np.round(np.linspace(0, len(frames.density) - 1,
+                                          min(max_frames, len(frames.density)))).astype(int))
+    pts, tri, rho = frames.field(int(pick[0]))
+    x0, y0 = pts.min(axis=0)
+    x1, y1 = pts.max(axis=0)
+    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
+    width = 8.0
+    fig, ax = plt.subplots(figsize=(width, max(2.5, min(8.0, width * aspect + 1.2))),
+                           layout="constrained")
+    mesh = ax.tripcolor(pts[:, 0], pts[:, 1], tri, facecolors=rho, vmin=0.0, vmax=VMAX,
+                        cmap="magma_r", shading="flat")
+    cb = fig.colorbar(mesh, ax=ax, shrink=0.85, extend="max")
+    cb.set_label("density [ped/m²]")
+    _outline(ax, pts, tri)
+    dots = ax.scatter([], [], s=6, c="#1f77b4", edgecolors="none")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_xlim(x0 - 0.5, x1 + 0.5)
+    ax.set_ylim(y0 - 0.5, y1 + 0.5)
+    model = s.get("model", "?")
+    clock = ax.set_title("")
+    n0 = float(s.get("n_initial") or 0)
+    t_ev, n_ev = frames.result.evacuation
+
+    def draw(k: int):
+        t = frames.density[k][0]
+        _, _, r = frames.field(k)
+        mesh.set_array(r)
+        crowd = frames.crowd(t)
+        if crowd is not None:
+            dots.set_offsets(crowd[0] if len(crowd[0]) else np.zeros((0, 2)))
+        out_now = float(np.interp(t, t_ev, n_ev)) if len(t_ev) else 0.0
+        clock.set_text(f"{model} on '{s.get('room', '?')}'   t = {t:6.1f} s   "
+                       f"out {out_now:.0f} of {n0:.0f}")
+        return mesh, dots, clock
+
+    anim = animation.FuncAnimation(fig, draw, frames=[int(k) for k in pick], blit=False)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.stem + ".part" + suffix)
+    try:
+        if suffix == ".mp4":
+            import imageio_ffmpeg
+
+            matplotlib.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
+            writer = animation.FFMpegWriter(fps=fps, codec="libx264",
+                                            extra_args=["-pix_fmt", "yuv420p"])
+        else:
+            writer = animation.PillowWriter(fps=fps)
+        anim.save(tmp, writer=writer, dpi=dpi)
+        tmp.replace(out)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        plt.close(fig)
+    return out
+
+
+def _outline(ax, pts: np.ndarray, tri: np.ndarray) -> None:
+    """The mesh's boundary edges (walls, obstacles, exits) as black lines."""
+    from matplotlib.collections import LineCollection
+
+    e = np.sort(tri[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
+    edges, counts = np.unique(e, axis=0, return_counts=True)
+    b = edges[counts == 1]
+    ax.add_collection(LineCollection(pts[b], colors="k", linewidths=1.2))
