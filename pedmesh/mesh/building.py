@@ -189,8 +189,9 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
     for hg in hinges:
         lv_k = [p[0] for p in pieces].index(hg["level"])
         st_k = [p[0] for p in pieces].index(hg["stair"].name)
-        va = _hinge_vertices(pieces[lv_k], hg["name"], pts)
-        vb = _hinge_vertices(pieces[st_k], hg["name"], pts)
+        along = np.append(hg["b"] - hg["a"], 0.0)  # the hinge is horizontal: a -> b in 3-D
+        va = _hinge_vertices(pieces[lv_k], hg["name"], pts, along)
+        vb = _hinge_vertices(pieces[st_k], hg["name"], pts, along)
         if len(va) != len(vb) or not np.allclose(pts[va], pts[vb], atol=1e-6):
             raise MeshError(f"stair '{hg['stair'].name}': its {hg['end']} edge was meshed "
                             "differently on its two sides")
@@ -212,13 +213,11 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
                        building=building)
 
 
-def _hinge_vertices(piece, name: str, pts: np.ndarray) -> np.ndarray:
-    """The (global, pre-merge) vertices of a piece on hinge ``name``, in order along it."""
+def _hinge_vertices(piece, name: str, pts: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """The (global, pre-merge) vertices of a piece on hinge ``name``, in order along the
+    hinge's direction ``along`` (3,)."""
     _, _, m, off, _, _ = piece
     k = m.exit_names.index(name)
     sel = (m.segment_kind == BoundaryKind.EXIT) & (m.segment_owner == k)
     v = np.unique(m.segments[sel]) + off
-    # order along the hinge (its end points are the extreme ones in 3-D)
-    d = pts[v] - pts[v].mean(axis=0)
-    u, _, _ = np.linalg.svd(d.T @ d)
-    return v[np.argsort(d @ u[:, 0])]
+    return v[np.argsort(pts[v] @ along, kind="stable")]
