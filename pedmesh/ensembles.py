@@ -252,7 +252,8 @@ def _run_in_temp(task: Mapping[str, Any], final: Path, worker: str) -> dict:
     plan = plan_run(room, mesh, task["model"], overrides=dict(task["overrides"]),
                     t_end=task["t_end"], geometry=task["geometry"],
                     mesh_options=dict(task["mesh_options"]),
-                    model_options=dict(task["model_options"]), preset=task["preset"])
+                    model_options=dict(task["model_options"]), preset=task["preset"],
+                    max_people=task.get("max_people"))
     header = {**plan.header, "ensemble": {"member": task["member"], "point": task["point"],
                                           "seed": task["seed"], "worker": worker}}
     final.parent.mkdir(parents=True, exist_ok=True)
@@ -461,7 +462,7 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
              min_angle: float = MIN_ANGLE, feature_area: float | None = FEATURE_AREA,
              exit_size: float | None = None,
              max_cells: float | None = None,
-             preset: str | None = None, quiet: bool = False):
+             preset: str | None = None, quiet: bool = False, max_people: int | None = None):
     """Run an ensemble (see module docstring) and return its members as a pandas
     DataFrame (the rows of ensemble.csv).
 
@@ -486,7 +487,7 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         _check_scheduler(scheduler)
     mesh_options = {"max_area": max_area, "min_angle": min_angle, "feature_area": feature_area,
                     "exit_size": exit_size}
-    preset = _check_room(geometry, preset, mesh_options, max_cells)
+    preset = _check_room(geometry, preset, mesh_options, max_cells, max_people)
     out = Path(out)
     plan = _plan(geometry, name, members, out, overrides=overrides, sweep=sweep, seed=seed,
                  t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=seeded)
@@ -506,7 +507,7 @@ def ensemble(geometry: str | Path, model: str = "sfm", members: int = 10,
         if todo:
             _compute(todo, rows, plan, name, geometry, t_end, mesh_options, preset, seeded,
                      out, frame, client=client, scheduler=scheduler, workers=workers,
-                     quiet=quiet, max_cells=max_cells)
+                     quiet=quiet, max_cells=max_cells, max_people=max_people)
         _from_folders(rows, plan)
         return _finish(out, frame(), sweep, meta)
     finally:
@@ -641,14 +642,17 @@ def _remove_scratch(members: Path) -> None:
 
 
 def _check_room(geometry: str, preset: str | None, mesh_options: Mapping[str, Any],
-                max_cells: float | None) -> str | None:
+                max_cells: float | None, max_people: int | None = None) -> str | None:
     """Load the room once on the client, so that a bad room file or an oversized mesh fails
     here and not in every member, and return the preset in use (``preset``, else the room
     file's, else the default)."""
     from .io import load_room
     from .presets import resolve_preset
 
+    from .run.driver import check_crowd
+
     room = load_room(geometry)
+    check_crowd(room, max_people)  # (the crowd limit, --max-people)
     preset = resolve_preset(preset, room)
     _check_mesh_size(room, mesh_options, max_cells)
     return preset
@@ -746,7 +750,8 @@ def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | N
 
 
 def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, seeded, out,
-             frame, *, client, scheduler, workers, quiet, max_cells=None) -> None:
+             frame, *, client, scheduler, workers, quiet, max_cells=None,
+             max_people=None) -> None:
     """Submit the members in ``todo`` and record their rows as they finish, each from the
     member's own summary. A collected result is released at once, so that Dask does not
     compute it again when the worker holding it dies. On Ctrl-C the members not collected
@@ -784,6 +789,7 @@ def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, see
                   "geometry": str(Path(geometry).resolve()), "model": model,
                   "overrides": m.overrides, "t_end": t_end, "out_dir": str(m.out_dir.resolve()),
                   "mesh_options": mesh_options, "preset": preset, "max_cells": max_cells,
+                  "max_people": max_people,
                   "model_options": {"seed": m.seed} if seeded else {}} for m in todo]
         for m, t in zip(todo, tasks):
             fut = client.submit(run_member, t, key=f"pedmesh-{m.member}-{time.time_ns()}",

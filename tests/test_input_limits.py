@@ -120,6 +120,10 @@ def test_a_crowd_above_max_people_is_refused_before_anything_is_allocated(nothin
     status, err = _cli(capsys, "compare", path, "--models", "sfm,eos", "--out",
                        tmp_path / "cmp", "-q")
     assert status == 2 and len(err) == 1 and "--max-people N" in err[0]
+    status, err = _cli(capsys, "ensemble", path, "--members", "1", "--out",
+                       tmp_path / "ens", "-q")  # (on the client, before any cluster)
+    assert status == 2 and len(err) == 1 and "--max-people N" in err[0], err
+    assert not (tmp_path / "ens").exists()
     for call in (lambda: pedmesh.simulate(room, model="sfm"),
                  lambda: pedmesh.build(room, model="eos"),
                  lambda: pedmesh.simulate(path, model="rdue", max_people=10**6)):

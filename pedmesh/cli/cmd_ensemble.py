@@ -8,6 +8,7 @@ from pathlib import Path
 
 from .cmd_mesh import add_mesh_args, mesh_options
 from .cmd_presets import add_preset_arg
+from .cmd_run import add_max_people_arg
 
 HELP = "run an ensemble or a parameter study on Dask (local cores or a cluster)"
 DESCRIPTION = """\
@@ -68,6 +69,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help=f"stop each run at this simulated time in s "
                         f"(default: {DEFAULT_T_END_S:g})")
     add_preset_arg(p)
+    add_max_people_arg(p)
     add_mesh_args(p)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
@@ -88,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
                       overrides=parse_overrides(args.param), sweep=parse_sweep(args.sweep),
                       seed=args.seed, scheduler=args.scheduler, workers=args.workers,
                       t_end=args.t_end, **mesh_options(args), max_cells=args.max_cells,
+                      max_people=args.max_people,
                       quiet=args.quiet, preset=args.preset)
     except KeyboardInterrupt:
         print(f"pedmesh: ensemble interrupted; finished members are kept in {out}",
