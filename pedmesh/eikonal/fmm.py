@@ -90,25 +90,40 @@ class EikonalSolver:
     # ------------------------------------------------------------------ set-up
     def _setup(self) -> None:
         mesh = self.mesh
-        pts = mesh.points
-        tri = mesh.triangles
-        n = mesh.n_points
         # exit vertices
         ev = mesh.exit_vertices
         sel = np.isin(ev, self.exits)
         self.fixed_vertices = np.flatnonzero(sel).astype(np.int32)
         self._fixed_exit = ev[sel]
         # obtuse corners and their split vertices
-        split = _fmm.find_split_vertices(pts, tri, mesh.triangle_neighbors, MAX_SPLIT_STEPS)
+        split = self._split_vertices()
         self.n_obtuse = int(np.sum(split != -1))
         self.n_split_fallback = int(np.sum(split == -2))
-        # the kernel marches in 3-D; a room lies at z = 0 (x + 0 is exact: bit for bit the
-        # same as in 2-D)
-        self.pts = np.ascontiguousarray(np.column_stack([pts, np.zeros(len(pts))]))
+        self.pts = self._march_points()
+        self._corner_rows(split)
+        self._rays()
+
+    def _split_vertices(self) -> np.ndarray:
+        """(m, 3) the vertex splitting each obtuse corner, -1 (not obtuse) or -2 (no split:
+        the plain update) (:func:`~pedmesh.eikonal.fmm_kernels.find_split_vertices`)."""
+        mesh = self.mesh
+        return _fmm.find_split_vertices(mesh.points, mesh.triangles, mesh.triangle_neighbors,
+                                        MAX_SPLIT_STEPS)
+
+    def _march_points(self) -> np.ndarray:
+        """(n, 3) vertices for the kernel, which marches in 3-D: a room lies at z = 0 (x + 0
+        is exact: bit for bit the same as in 2-D)."""
+        pts = self.mesh.points
+        return np.ascontiguousarray(np.column_stack([pts, np.zeros(len(pts))]))
+
+    def _corner_rows(self, split: np.ndarray) -> None:
+        """The kernel's corner and split-target rows (see :mod:`~pedmesh.eikonal.fmm_kernels`)."""
+        tri = self.mesh.triangles
+        n = self.mesh.n_points
         tsplit = np.where(split >= 0, split, -1)
         # per vertex v and triangle t around it: (t, A, B, split of A, split of B), A and B
         # the next corners counter-clockwise (the kernel's row layout, see _fmm)
-        ptr, idx = mesh.vertex_triangles
+        ptr, idx = self.mesh.vertex_triangles
         loc = np.argmax(tri[idx] == np.repeat(np.arange(n), np.diff(ptr))[:, None], axis=1)
         ia, ib = (loc + 1) % 3, (loc + 2) % 3
         self.vt_ptr = ptr
@@ -120,8 +135,12 @@ class EikonalSolver:
         t_s, i_s = t_s[order], i_s[order]
         self.ds_corner = _int32_rows(t_s, tri[t_s, i_s], tri[t_s, (i_s + 1) % 3],
                                      tri[t_s, (i_s + 2) % 3])
-        # straight rays from singular boundary vertices, with sample triangles for the
-        # line integral of the cost (midpoint rule, about two samples per local edge length)
+
+    def _rays(self) -> None:
+        """Straight rays from singular boundary vertices, with sample triangles for the
+        line integral of the cost (midpoint rule, about two samples per local edge
+        length)."""
+        mesh = self.mesh
         self.ray_ptr, self.ray_idx, self.ray_len = _corner_rays(mesh, self.corner_radius)
         self.ray_samp_ptr, self.ray_samp_tri = _ray_samples(mesh, self.ray_ptr, self.ray_idx,
                                                             self.ray_len)

@@ -19,10 +19,9 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..mesh.surface import SurfaceMesh
-from ..mesh.triangle_mesh import BoundaryKind
 from . import fmm_kernels as _fmm
 from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
-                  _int32_rows, _ray_samples)
+                  _ray_samples)
 
 __all__ = ["SurfaceEikonalSolver", "stair_costs", "surface_gradient"]
 
@@ -37,47 +36,24 @@ class SurfaceEikonalSolver(EikonalSolver):
             raise ParameterError("SurfaceEikonalSolver takes a building's SurfaceMesh")
         super().__init__(surface, exits, corner_radius)
 
-    def _setup(self) -> None:
+    def _split_vertices(self) -> np.ndarray:
+        """The obtuse-angle splits, piece by piece in each chart (a walk stops at a stair
+        edge, the boundary of its piece), in surface numbering."""
         s = self.mesh
-        tri = s.triangles
-        n = s.n_points
-        exit_of = np.full(n, -1, np.int64)
-        sel = s.segment_kind == BoundaryKind.EXIT
-        exit_of[s.segments[sel, 0]] = s.segment_owner[sel]
-        exit_of[s.segments[sel, 1]] = s.segment_owner[sel]
-        fixed = np.isin(exit_of, self.exits)
-        self.fixed_vertices = np.flatnonzero(fixed).astype(np.int32)
-        self._fixed_exit = exit_of[fixed]
-        # obtuse splits, piece by piece in each chart
         split = np.full((s.n_triangles, 3), -1, np.int64)
         for p in s.pieces:
             m = p.mesh
             loc = _fmm.find_split_vertices(m.points, m.triangles, m.triangle_neighbors,
                                            MAX_SPLIT_STEPS)
             split[p.triangles] = np.where(loc >= 0, p.vertices[np.maximum(loc, 0)], loc)
-        self.n_obtuse = int(np.sum(split != -1))
-        self.n_split_fallback = int(np.sum(split == -2))
-        self.pts = np.ascontiguousarray(s.points)
-        tsplit = np.where(split >= 0, split, -1)
-        flat = tri.ravel()
-        order = np.argsort(flat, kind="stable")
-        idx = (order // 3).astype(np.int64)
-        ptr = np.zeros(n + 1, np.int64)
-        np.cumsum(np.bincount(flat, minlength=n), out=ptr[1:])
-        loc = np.argmax(tri[idx] == np.repeat(np.arange(n), np.diff(ptr))[:, None], axis=1)
-        ia, ib = (loc + 1) % 3, (loc + 2) % 3
-        self.vt_ptr = ptr
-        self.vt_corner = _int32_rows(idx, tri[idx, ia], tri[idx, ib], tsplit[idx, ia],
-                                     tsplit[idx, ib])
-        t_s, i_s = np.nonzero(split >= 0)
-        self.ds_ptr, order = _csr(split[t_s, i_s], n)
-        t_s, i_s = t_s[order], i_s[order]
-        self.ds_corner = _int32_rows(t_s, tri[t_s, i_s], tri[t_s, (i_s + 1) % 3],
-                                     tri[t_s, (i_s + 2) % 3])
-        self._rays(s)
+        return split
 
-    def _rays(self, s: SurfaceMesh) -> None:
+    def _march_points(self) -> np.ndarray:
+        return np.ascontiguousarray(self.mesh.points)
+
+    def _rays(self) -> None:
         """The corner rays of every piece, in surface numbering (CSR by source vertex)."""
+        s = self.mesh
         src, dst, length, samp_n, samp_tri = [], [], [], [], []
         for p in s.pieces:
             ptr, idx, ln = _corner_rays(p.mesh, self.corner_radius)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import MeshError
-from .triangle_mesh import BoundaryKind, TriMesh
+from .triangle_mesh import BoundaryKind, TriMesh, vertex_triangle_csr
 
 __all__ = ["Piece", "SurfaceMesh"]
 
@@ -130,10 +130,19 @@ class SurfaceMesh:
         return self.points[self.triangles].mean(axis=1)
 
     @cached_property
+    def _edge_data(self) -> tuple[np.ndarray, np.ndarray]:
+        loc = np.sort(self.triangles[:, [[1, 2], [2, 0], [0, 1]]].reshape(-1, 2), axis=1)
+        return np.unique(loc, axis=0, return_counts=True)
+
+    @property
     def edges(self) -> np.ndarray:
         """Unique edges (k, 2) as vertex pairs, smaller index first."""
-        loc = self.triangles[:, [[1, 2], [2, 0], [0, 1]]].reshape(-1, 2)
-        return np.unique(np.sort(loc, axis=1), axis=0)
+        return self._edge_data[0]
+
+    @property
+    def edge_triangle_counts(self) -> np.ndarray:
+        """How many triangles share each edge of :attr:`edges` (1 on the boundary)."""
+        return self._edge_data[1]
 
     @cached_property
     def edge_lengths(self) -> np.ndarray:
@@ -142,11 +151,21 @@ class SurfaceMesh:
         return np.linalg.norm(p[self.edges[:, 1]] - p[self.edges[:, 0]], axis=1)
 
     @cached_property
-    def edge_triangle_counts(self) -> np.ndarray:
-        """How many triangles share each edge of :attr:`edges` (1 on the boundary)."""
-        loc = np.sort(self.triangles[:, [[1, 2], [2, 0], [0, 1]]].reshape(-1, 2), axis=1)
-        _, counts = np.unique(loc, axis=0, return_counts=True)
-        return counts
+    def vertex_triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """Vertex-to-triangle adjacency in CSR form ``(indptr, indices)`` (as
+        :attr:`pedmesh.mesh.TriMesh.vertex_triangles`)."""
+        return vertex_triangle_csr(self.triangles, self.n_points)
+
+    @cached_property
+    def exit_vertices(self) -> np.ndarray:
+        """(n,) exit number of each vertex lying on an exit, -1 elsewhere (as
+        :attr:`pedmesh.mesh.TriMesh.exit_vertices`)."""
+        out = np.full(self.n_points, -1, np.int64)
+        sel = self.segment_kind == BoundaryKind.EXIT
+        out[self.segments[sel, 0]] = self.segment_owner[sel]
+        out[self.segments[sel, 1]] = self.segment_owner[sel]
+        out.setflags(write=False)
+        return out
 
     @property
     def area(self) -> float:
@@ -168,8 +187,3 @@ class SurfaceMesh:
         stair = np.array([p.kind == "stair" for p in self.pieces], np.int8)
         return {"piece": self.piece.astype(np.int32), "stair": stair[self.piece],
                 "area": self.areas}
-
-    def exit_points(self, k: int) -> np.ndarray:
-        """The vertices (indices) on exit ``k``."""
-        sel = (self.segment_kind == BoundaryKind.EXIT) & (self.segment_owner == k)
-        return np.unique(self.segments[sel])

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..errors import MeshError
 
-__all__ = ["BoundaryKind", "TriMesh", "room_fingerprint"]
+__all__ = ["BoundaryKind", "TriMesh", "vertex_triangle_csr", "room_fingerprint"]
 
 
 class BoundaryKind(enum.IntEnum):
@@ -65,6 +65,22 @@ def room_fingerprint(room) -> str:
     if isinstance(cache, dict):
         cache["mesh_fingerprint"] = fp
     return fp
+
+
+def vertex_triangle_csr(triangles: np.ndarray, n_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex-to-triangle adjacency of ``triangles`` (m, 3) over ``n_points`` vertices in CSR
+    form ``(indptr, indices)``, the triangles of each vertex in increasing order; a vertex of
+    no triangle is a :class:`~pedmesh.errors.MeshError`."""
+    flat = np.asarray(triangles).ravel()
+    order = np.argsort(flat, kind="stable")
+    indices = (order // 3).astype(np.int64)
+    counts = np.bincount(flat, minlength=n_points)
+    indptr = np.zeros(n_points + 1, np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    if np.any(counts == 0):
+        v = int(np.flatnonzero(counts == 0)[0])
+        raise MeshError(f"vertex {v} belongs to no triangle")
+    return indptr, indices
 
 
 @dataclass(frozen=True, eq=False)
@@ -297,16 +313,7 @@ class TriMesh:
 
         The triangles around vertex ``v`` are ``indices[indptr[v]:indptr[v+1]]``.
         """
-        flat = self.triangles.ravel()
-        order = np.argsort(flat, kind="stable")
-        indices = (order // 3).astype(np.int64)
-        counts = np.bincount(flat, minlength=self.n_points)
-        indptr = np.zeros(self.n_points + 1, np.int64)
-        np.cumsum(counts, out=indptr[1:])
-        if np.any(counts == 0):
-            v = int(np.flatnonzero(counts == 0)[0])
-            raise MeshError(f"vertex {v} belongs to no triangle")
-        return indptr, indices
+        return vertex_triangle_csr(self.triangles, self.n_points)
 
     # ------------------------------------------------------------------ geometry
     @cached_property
