@@ -88,9 +88,6 @@ def mesh_options(args: argparse.Namespace) -> dict:
 
 def _building_summary(args: argparse.Namespace, building, mesh) -> int:
     """What `pedmesh mesh` prints and writes for a building's surface mesh."""
-    from ..errors import PedmeshError
-    from ..io import write_vtu
-
     print(f"building '{building.name}' ({args.geometry})")
     print(f"  walkable area   {building.area:.3f} m^2 on the surface (mesh: {mesh.area:.3f} m^2)")
     print(f"  vertices        {mesh.n_points}")
@@ -105,20 +102,13 @@ def _building_summary(args: argparse.Namespace, building, mesh) -> int:
               f"{building.rise(s):g} m, slope {building.slope(s):.1f} deg")
     print(f"  exits           {', '.join(mesh.exit_names) or 'none'}")
     if args.output:
-        out = Path(args.output)
-        if out.suffix.lower() != ".vtu":
-            raise PedmeshError(f"{out}: the mesh is written as VTU; use a .vtu suffix")
-        if out.parent and not out.parent.exists():
-            out.parent.mkdir(parents=True)
-        write_vtu(out, mesh, cell_data=mesh.cell_data())
-        print(f"wrote {out} (the building in 3-D: levels at their heights, stairs sloped)")
+        _write(args.output, mesh, " (the building in 3-D: levels at their heights, stairs "
+               "sloped)", cell_data=mesh.cell_data())
     return 0
 
 
 def run(args: argparse.Namespace) -> int:
     from ..mesh import TriMesh
-    from ..errors import PedmeshError
-    from ..io import write_vtu
 
     room, mesh = mesh_from_args(args, buildings=True)
     if not isinstance(mesh, TriMesh):
@@ -137,11 +127,20 @@ def run(args: argparse.Namespace) -> int:
     print(f"  obstacles       {len(room.obstacles)}")
     print(f"  pedestrians     {n_ped} in {len(room.start_areas)} start area(s)")
     if args.output:
-        out = Path(args.output)
-        if out.suffix.lower() != ".vtu":
-            raise PedmeshError(f"{out}: the mesh is written as VTU; use a .vtu suffix")
-        if out.parent and not out.parent.exists():
-            out.parent.mkdir(parents=True)
-        write_vtu(out, mesh, cell_data={"area": mesh.areas}, boundary=True)
-        print(f"wrote {out}")
+        _write(args.output, mesh, "", cell_data={"area": mesh.areas}, boundary=True)
     return 0
+
+
+def _write(output: str, mesh, note: str, **kw) -> None:
+    """Write ``mesh`` to the .vtu file ``output`` (``kw``: fields, see
+    :func:`pedmesh.io.write_vtu`) and say so."""
+    from ..errors import PedmeshError
+    from ..io import write_vtu
+
+    out = Path(output)
+    if out.suffix.lower() != ".vtu":
+        raise PedmeshError(f"{out}: the mesh is written as VTU; use a .vtu suffix")
+    if out.parent and not out.parent.exists():
+        out.parent.mkdir(parents=True)
+    write_vtu(out, mesh, **kw)
+    print(f"wrote {out}{note}")

@@ -33,7 +33,8 @@ import numpy as np
 from shapely.geometry import LinearRing, LineString, Polygon
 
 from ..errors import GeometryError
-from .room import Points, Room, _check_name, _coerce_points, _is_real, _polygon
+from .room import (Points, Room, _check_name, _check_preset, _coerce_points, _is_real,
+                   _polygon)
 from .tolerances import EXIT_TOLERANCE
 
 __all__ = ["Building", "Level", "Stair", "StairEnd", "STAIR_SPEED_UP", "STAIR_SPEED_DOWN",
@@ -190,12 +191,7 @@ class Building:
             if exits.count(n) > 1:
                 raise GeometryError(f"exit name '{n}' is used on more than one level (exit "
                                     "names must be unique in a building)")
-        if self.preset is not None:
-            from ..presets import PRESETS
-
-            if not isinstance(self.preset, str) or self.preset not in PRESETS:
-                raise GeometryError(f"unknown preset {self.preset!r} (presets: "
-                                    f"{', '.join(PRESETS)})")
+        _check_preset(self.preset)
         for s in self.stairs:
             self._check_stair(s)
 

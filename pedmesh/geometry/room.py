@@ -131,6 +131,17 @@ def _polygon(points: Points, label: str) -> Polygon:
     return poly
 
 
+def _check_preset(preset: Any) -> None:
+    """A one-line error unless ``preset`` (a room's or a building's) is None or a preset's
+    name."""
+    if preset is None:
+        return
+    from ..presets import PRESETS
+
+    if not isinstance(preset, str) or preset not in PRESETS:
+        raise GeometryError(f"unknown preset {preset!r} (presets: {', '.join(PRESETS)})")
+
+
 def _positive(value: Any, what: str, label: str, *, integer: bool = False) -> float | int | None:
     if value is None:
         return None
@@ -503,12 +514,7 @@ class Room:
             raise GeometryError(f"room name must be a string, got {self.name!r}")
         if not isinstance(self.description, str):
             raise GeometryError(f"room description must be a string, got {self.description!r}")
-        if self.preset is not None:
-            from ..presets import PRESETS
-
-            if not isinstance(self.preset, str) or self.preset not in PRESETS:
-                raise GeometryError(f"unknown preset {self.preset!r} (presets: "
-                                    f"{', '.join(PRESETS)})")
+        _check_preset(self.preset)
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         set_("outline", _coerce_points(self.outline, "room outline", ring=True))
         set_("obstacles", _coerce_elements(self.obstacles, Obstacle, "obstacle"))

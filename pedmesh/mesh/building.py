@@ -72,11 +72,16 @@ def _hinges(building) -> list[dict]:
     return out
 
 
-def _params_on(mesh: TriMesh, name: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The parameters s in [0, 1] along a -> b of the vertices on hinge exit ``name``."""
+def _on_exit(mesh: TriMesh, name: str) -> np.ndarray:
+    """The vertices of ``mesh`` on its exit ``name`` (a hinge: the mesher's exit), sorted."""
     k = mesh.exit_names.index(name)
     sel = (mesh.segment_kind == BoundaryKind.EXIT) & (mesh.segment_owner == k)
-    v = np.unique(mesh.segments[sel])
+    return np.unique(mesh.segments[sel])
+
+
+def _params_on(mesh: TriMesh, name: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The parameters s in [0, 1] along a -> b of the vertices on hinge exit ``name``."""
+    v = _on_exit(mesh, name)
     ab = b - a
     return np.sort((mesh.points[v] - a) @ ab / (ab @ ab))
 
@@ -186,9 +191,9 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
     pts = np.concatenate(points)
     # merge each stair edge's vertices: the stair's copies become the level's
     remap = np.arange(len(pts))
+    index_of = {p[0]: k for k, p in enumerate(pieces)}
     for hg in hinges:
-        lv_k = [p[0] for p in pieces].index(hg["level"])
-        st_k = [p[0] for p in pieces].index(hg["stair"].name)
+        lv_k, st_k = index_of[hg["level"]], index_of[hg["stair"].name]
         along = np.append(hg["b"] - hg["a"], 0.0)  # the hinge is horizontal: a -> b in 3-D
         va = _hinge_vertices(pieces[lv_k], hg["name"], pts, along)
         vb = _hinge_vertices(pieces[st_k], hg["name"], pts, along)
@@ -201,12 +206,13 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
     new_index[keep] = np.arange(len(keep))
     final = new_index[remap]
     tri = final[np.concatenate(tris)]
+    piece_of = np.concatenate(piece_of)
     out_pieces = []
     for k, (name, kind_, m, off, origin, axes) in enumerate(pieces):
         verts = final[off + np.arange(m.n_points)]
-        tri_k = np.flatnonzero(np.concatenate(piece_of) == k)
-        out_pieces.append(Piece(name, kind_, m, verts, tri_k, origin, axes))
-    return SurfaceMesh(points=pts[keep], triangles=tri, piece=np.concatenate(piece_of),
+        out_pieces.append(Piece(name, kind_, m, verts, np.flatnonzero(piece_of == k), origin,
+                                axes))
+    return SurfaceMesh(points=pts[keep], triangles=tri, piece=piece_of,
                        pieces=tuple(out_pieces), segments=final[np.array(seg).reshape(-1, 2)],
                        segment_kind=np.array(kind, np.int8), segment_owner=np.array(owner),
                        exit_names=tuple(exit_names), obstacle_names=tuple(obstacle_names),
@@ -217,7 +223,5 @@ def _hinge_vertices(piece, name: str, pts: np.ndarray, along: np.ndarray) -> np.
     """The (global, pre-merge) vertices of a piece on hinge ``name``, in order along the
     hinge's direction ``along`` (3,)."""
     _, _, m, off, _, _ = piece
-    k = m.exit_names.index(name)
-    sel = (m.segment_kind == BoundaryKind.EXIT) & (m.segment_owner == k)
-    v = np.unique(m.segments[sel]) + off
+    v = _on_exit(m, name) + off
     return v[np.argsort(pts[v] @ along, kind="stable")]

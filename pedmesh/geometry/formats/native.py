@@ -147,6 +147,22 @@ _LEVEL_KEYS = (_TOP_KEYS - {"format", "version", "units", "preset", "description
 _STAIR_KEYS = {"name", "polygon", "bottom", "top", "speed_up", "speed_down"}
 
 
+def _checked_object(item: Any, where: str, what: str, allowed: set[str],
+                    required: tuple[str, ...]) -> str:
+    """A one-line error unless ``item`` is a JSON object with only ``allowed`` keys and
+    every ``required`` one; returns ``where`` (the place for later messages)."""
+    if not isinstance(item, dict):
+        raise RoomFileError(f"{where}: each {what} must be a JSON object")
+    bad = sorted(set(item) - allowed)
+    if bad:
+        raise RoomFileError(f"{where}: unknown key '{bad[0]}' for a {what} (allowed: "
+                            f"{', '.join(sorted(allowed))})")
+    for key in required:
+        if key not in item:
+            raise RoomFileError(f"{where}: a {what} needs '{key}'")
+    return where
+
+
 def building_from_dict(data: dict, source: str = "building") -> Building:
     """Build a :class:`Building` from a native-format dict with ``"levels"``."""
     unknown = sorted(set(data) - _BUILDING_KEYS)
@@ -161,32 +177,15 @@ def building_from_dict(data: dict, source: str = "building") -> Building:
             raise RoomFileError(f"{source}: '{key}' must be a list, got {type(items).__name__}")
     levels = []
     for i, item in enumerate(levels_in):
-        where = f"{source}: levels[{i}]"
-        if not isinstance(item, dict):
-            raise RoomFileError(f"{where}: each level must be a JSON object")
-        bad = sorted(set(item) - _LEVEL_KEYS)
-        if bad:
-            raise RoomFileError(f"{where}: unknown key '{bad[0]}' for a level (allowed: "
-                                f"{', '.join(sorted(_LEVEL_KEYS))})")
-        for key in ("name", "z"):
-            if key not in item:
-                raise RoomFileError(f"{where}: a level needs '{key}'")
-        name = item["name"]
+        where = _checked_object(item, f"{source}: levels[{i}]", "level", _LEVEL_KEYS,
+                                ("name", "z"))
         room = _room({k: v for k, v in item.items() if k != "z"},
-                     f"{where} ('{name}')")
-        levels.append(Level(name, item["z"], room))
+                     f"{where} ('{item['name']}')")
+        levels.append(Level(item["name"], item["z"], room))
     stairs = []
     for i, item in enumerate(stairs_in):
-        where = f"{source}: stairs[{i}]"
-        if not isinstance(item, dict):
-            raise RoomFileError(f"{where}: each stair must be a JSON object")
-        bad = sorted(set(item) - _STAIR_KEYS)
-        if bad:
-            raise RoomFileError(f"{where}: unknown key '{bad[0]}' for a stair (allowed: "
-                                f"{', '.join(sorted(_STAIR_KEYS))})")
-        for key in ("polygon", "bottom", "top"):
-            if key not in item:
-                raise RoomFileError(f"{where}: a stair needs '{key}'")
+        _checked_object(item, f"{source}: stairs[{i}]", "stair", _STAIR_KEYS,
+                        ("polygon", "bottom", "top"))
         stairs.append(Stair(**{"name": f"stair-{i + 1}", **item}))
     kwargs = {k: data[k] for k in ("name", "description", "preset") if k in data}
     return Building(levels=levels, stairs=stairs, **kwargs)
