@@ -598,7 +598,8 @@ def measure_fundamental_diagram(preset: str | None = None, seeds: int = 2,
                 t0 = time.perf_counter()
                 run_model(room, mesh, "sfm", overrides=dict(overrides or {}),
                           t_end=FD_WINDOW[1] + 0.2, out_dir=out, quiet=True, preset=preset,
-                          model_options={"seed": seed, "trajectory_rate": FD_FPS})
+                          model_options={"seed": seed, "trajectory_rate": FD_FPS},
+                          safety=False)  # (a scratch measurement run)
                 rho, u, n = box_density_speed(out / "trajectories.txt")
                 rows.append({"rho0": rho0, "seed": seed, "density": rho, "speed": u,
                              "samples": n, "wall_s": time.perf_counter() - t0})

@@ -147,6 +147,12 @@ def build_model(room, mesh, model: str, *, preset: str | None = None,
     check_room_mesh(room, mesh)
     check_crowd(room if room is not None else getattr(mesh, "room", None), max_people)
     _, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)
+    return _build(entry, room, mesh, parameters, options)
+
+
+def _build(entry: ModelEntry, room, mesh, parameters: Mapping[str, Any],
+           options: Mapping[str, Any]) -> RunModel:
+    """The model's run object, checked against the run protocol."""
     run = entry.build(room, mesh, parameters, **options)
     if not isinstance(run, RunModel):
         raise TypeError(f"model '{entry.name}' does not implement "
@@ -158,7 +164,8 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
               t_end: float = DEFAULT_T_END_S, out_dir: str | Path = "run", quiet: bool = False,
               geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
               model_options: dict[str, Any] | None = None,
-              preset: str | None = None, max_people: int | None = None) -> dict[str, Any]:
+              preset: str | None = None, max_people: int | None = None,
+              safety: bool = True) -> dict[str, Any]:
     """Run ``model`` on ``mesh`` until everyone has left or ``t_end`` [s].
 
     The run owns ``out_dir`` (see :mod:`pedmesh.run.output`): it refuses a non-empty
@@ -169,11 +176,12 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     run (a bad parameter while the model is built, a full disk); in every case the summary
     is written first, with status ``interrupted`` or ``failed`` and the error. A crowd
     above ``max_people`` (:func:`check_crowd`) is refused before anything is written.
+    ``safety``: compute the crowd-safety measures at the end (see :class:`RunPlan`).
     """
     out = Path(out_dir)
     plan = plan_run(room, mesh, model, overrides=overrides, t_end=t_end, geometry=geometry,
                     mesh_options=mesh_options, model_options=model_options, preset=preset,
-                    max_people=max_people)
+                    max_people=max_people, safety=safety)
     writer = RunWriter(out, plan.header, exit_names=mesh.exit_names)
     return execute(plan, writer, quiet=quiet, where=str(out))
 
@@ -190,13 +198,17 @@ class RunPlan:
     options: dict
     t_end: float
     header: dict
+    #: compute the crowd-safety measures at the end (summary.json "safety", safety.vtu);
+    #: off for the measurement runs of calibrations and fits, whose folders are scratch
+    safety: bool = True
 
 
 def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = None,
              t_end: float = DEFAULT_T_END_S, geometry: str | None = None,
              mesh_options: Mapping[str, Any] | None = None,
              model_options: Mapping[str, Any] | None = None,
-             preset: str | None = None, max_people: int | None = None) -> RunPlan:
+             preset: str | None = None, max_people: int | None = None,
+             safety: bool = True) -> RunPlan:
     """Check a run's request and resolve its parameters (see :func:`run_model`); the crowd's
     size is checked against ``max_people`` (:func:`check_crowd`) before anything big is
     allocated."""
@@ -223,7 +235,8 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
                                  geometry=geometry, mesh_options=mesh_options,
                                  model_options=model_options, preset=preset),
     }
-    return RunPlan(entry, room, mesh, parameters, model_options, float(t_end), header)
+    return RunPlan(entry, room, mesh, parameters, model_options, float(t_end), header,
+                   safety=safety)
 
 
 def _progress_bar(name: str, t_end: float, quiet: bool):
@@ -249,10 +262,7 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
     frame = 0
     status, error = "failed", None
     try:
-        run = plan.entry.build(plan.room, plan.mesh, plan.parameters, **plan.options)
-        if not isinstance(run, RunModel):
-            raise TypeError(f"model '{name}' does not implement "
-                            "pedmesh.models.protocol.RunModel")
+        run = _build(plan.entry, plan.room, plan.mesh, plan.parameters, plan.options)
         params = run.parameters()
         # the units of the declared parameters (pedmesh.parameters), for the reader
         extra: dict[str, Any] = {"parameters": params, "units": {
@@ -284,7 +294,8 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
                 result = dict(run.summary())
             except Exception as exc:  # the summary of a broken run: keep what we know
                 result = {"summary_error": f"{type(exc).__name__}: {exc}"}
-            result["safety"] = _safety(plan, writer, result)
+            if plan.safety:
+                result["safety"] = _safety(plan, writer, result)
         summary = writer.finish(status=status, error=error,
                                 t_stop=run.t if run is not None else 0.0, frames=frame,
                                 wall_time_s=wall, **result)

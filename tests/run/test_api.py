@@ -58,3 +58,22 @@ def test_api_errors_are_clear(geometries_dir):
         pedmesh.build(geometries_dir / "l_shaped.json", model="sfn")
     with pytest.raises(ParameterError, match="takes no option 'seed'"):
         pedmesh.build(geometries_dir / "l_shaped.json", model="eos", seed=1)
+
+
+def test_a_run_can_skip_the_safety_measures(geometries_dir, tmp_path):
+    """Scratch measurement runs (calibrations) skip the crowd-safety step; the run is the
+    same."""
+    import json
+
+    from pedmesh.io import load_room
+    from pedmesh.mesh import triangulate
+    from pedmesh.run import run_model
+
+    room = load_room(geometries_dir / "l_shaped.json")
+    mesh = triangulate(room, max_area=4.0)
+    a = run_model(room, mesh, "rdue", out_dir=tmp_path / "a", quiet=True, preset="paper")
+    b = run_model(room, mesh, "rdue", out_dir=tmp_path / "b", quiet=True, preset="paper",
+                  safety=False)
+    assert "safety" in a and "safety" not in b and not (tmp_path / "b" / "safety.vtu").exists()
+    assert json.loads((tmp_path / "b" / "summary.json").read_text())["t_evac_90"] == \
+        a["t_evac_90"]
