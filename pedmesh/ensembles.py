@@ -139,7 +139,13 @@ def _room_and_mesh(geometry: str, mesh_options: Mapping[str, Any],
     if key not in _ROOMS:
         room = load_room(geometry)
         _ROOMS.clear()  # one room at a time is enough for an ensemble
-        _ROOMS[key] = (room, triangulate(room, **dict(mesh_options), max_cells=max_cells))
+        if hasattr(room, "levels"):  # a building: one surface mesh of its levels and stairs
+            from .mesh.building import triangulate_building
+
+            opts = {k: v for k, v in mesh_options.items() if k != "exit_size"}
+            _ROOMS[key] = (room, triangulate_building(room, **opts, max_cells=max_cells))
+        else:
+            _ROOMS[key] = (room, triangulate(room, **dict(mesh_options), max_cells=max_cells))
     return _ROOMS[key]
 
 
@@ -736,6 +742,12 @@ def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | N
     from .mesh.triangulate import MAX_CELLS, check_max_cells, estimate_cells, size_fields
 
     check_max_cells(max_cells)
+    if hasattr(room, "levels"):  # a building: each level as a room (its stairs are small)
+        if mesh_options.get("exit_size") is not None:
+            raise MeshError("--exit-size is not available for buildings")
+        for lv in room.levels:
+            _check_mesh_size(lv.room, {**mesh_options, "exit_size": None}, max_cells)
+        return
     limit = MAX_CELLS if max_cells is None else max_cells
     if not math.isfinite(limit) or not (mesh_options["max_area"] > 0):
         return  # no limit, or a bad max_area that the mesher reports itself

@@ -10,6 +10,7 @@ from .evacuation import (
     evacuation_times_from_curve,
 )
 from .fields import kernel_density, kernel_velocity, vertex_to_cell
+from .levels import level_trajectories
 from .fundamental import PAPER_BINS, DensityFlowDiagram, density_flow_diagram, reference_flow
 from .outflow import continuum_outflow, crossing_rate, exit_gauss_points, particle_outflow
 from .safety import (
@@ -49,6 +50,7 @@ __all__ = [
     "exit_usage_from_flow",
     "kernel_density",
     "kernel_velocity",
+    "level_trajectories",
     "level_of_service",
     "local_density",
     "particle_outflow",

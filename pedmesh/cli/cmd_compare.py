@@ -65,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
             raise ParameterError(f"--times expects numbers, got '{args.times}'") from None
     from ..run.driver import check_crowd
 
-    room, mesh = mesh_from_args(args, check=lambda r: check_crowd(r, args.max_people))
+    room, mesh = mesh_from_args(args, buildings=True,
+                                check=lambda r: check_crowd(r, args.max_people))
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-compare"
     try:
         with stop_on_signals():  # Ctrl-C / SIGTERM: the running model stops after its step

@@ -64,7 +64,7 @@ def mesh_from_args(args: argparse.Namespace, *, buildings: bool = False, check=N
     from ..io import load_room
 
     room = load_room(args.geometry)
-    if check is not None and not isinstance(room, Building):
+    if check is not None:
         check(room)
     if isinstance(room, Building):
         if not buildings:

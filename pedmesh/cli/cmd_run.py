@@ -92,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
     from ..run.driver import check_crowd
 
     overrides = parse_overrides(args.param)
-    room, mesh = mesh_from_args(args, check=lambda r: check_crowd(r, args.max_people))
+    room, mesh = mesh_from_args(args, buildings=True,
+                                check=lambda r: check_crowd(r, args.max_people))
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-{name}"
     from ..errors import ParameterError
 

@@ -191,7 +191,7 @@ def _jamb_overrides(mesh: TriMesh) -> np.ndarray:
 
 
 #: Columns of the packed per-triangle table used by :func:`_interpolate`.
-PACK_WIDTH = 20
+PACK_WIDTH = 21
 
 
 @nb.njit(cache=True)
@@ -202,7 +202,9 @@ def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
       out[t,1] x + out[t,2] y and lambda_2 = out[t,3] + out[t,4] x + out[t,5] y;
     * 6-11: the three corner directions (door-jamb overrides applied);
     * 12-17: the wall normals opposite the corners (0 where there is no wall edge);
-    * 18-19: the triangle's own direction.
+    * 18-19: the triangle's own direction;
+    * 20: the length of the interpolated direction (1; a building's stairs set their speed
+      factor there, :func:`scale_packed`).
 
     One contiguous row per triangle instead of six scattered look-ups per point halves the
     cost of steering thousands of pedestrians.
@@ -232,6 +234,7 @@ def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
             out[t, 13 + 2 * k] = wall_n[t, k, 1]
         out[t, 18] = tdir[t, 0]
         out[t, 19] = tdir[t, 1]
+        out[t, 20] = 1.0
 
 
 @nb.njit(cache=True, inline="always")
@@ -284,8 +287,17 @@ def _interpolate(P, tri_idx, xy, out):
                     ey -= s * ny
             nrm = np.sqrt(ex * ex + ey * ey)
         if nrm > 1e-12:
-            out[k, 0] = ex / nrm
-            out[k, 1] = ey / nrm
+            out[k, 0] = ex / nrm * P[t, 20]
+            out[k, 1] = ey / nrm * P[t, 20]
+
+
+def scale_packed(packed: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """The packed table ``packed`` with the directions of each triangle scaled to the
+    length ``factors`` (m,) (a building's stair speed factors: the desired velocity of a
+    particle model is its desired speed times the interpolated direction)."""
+    out = packed.copy()
+    out[:, 20] = factors
+    return out
 
 
 def pack_directions(mesh: TriMesh, vertex_directions: np.ndarray,
@@ -353,7 +365,7 @@ class DirectionField:
 
     @property
     def packed(self) -> np.ndarray:
-        """(m, 20) per-triangle interpolation table (built on first use)."""
+        """(m, PACK_WIDTH) per-triangle interpolation table (built on first use)."""
         if self._packed is None:
             self._packed = pack_directions(self.mesh, self.vertex_directions,
                                            self.triangle_directions)

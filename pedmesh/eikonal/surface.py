@@ -20,10 +20,13 @@ import numpy as np
 from ..errors import ParameterError
 from ..mesh.surface import SurfaceMesh
 from . import fmm_kernels as _fmm
+from ..mesh.triangle_mesh import BoundaryKind
+from .direction import DirectionField
 from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
                   _ray_samples)
 
-__all__ = ["SurfaceEikonalSolver", "stair_costs", "surface_gradient"]
+__all__ = ["SurfaceEikonalSolver", "BuildingRoutes", "atlas_direction_field", "stair_costs",
+           "stair_factors", "surface_gradient"]
 
 
 class SurfaceEikonalSolver(EikonalSolver):
@@ -84,31 +87,229 @@ class SurfaceEikonalSolver(EikonalSolver):
         self.ray_samp_tri = np.concatenate(samples).astype(np.int64)
 
 
-def stair_costs(surface: SurfaceMesh, phi: np.ndarray | None = None, *,
-                level_cost: float | np.ndarray = 1.0) -> np.ndarray:
-    """The cost [s/m] per triangle of walking on the surface: ``level_cost`` on the levels
-    (a scalar or one value per triangle) and on a stair ``level_cost / speed_up`` going up,
-    ``/ speed_down`` going down. Which way a stair is walked is read from the gradient of
-    ``phi`` (a potential, e.g. the distance to the exits, decreasing towards them) along
-    the stair's slope; without ``phi`` everyone goes down (the exits below)."""
+def stair_factors(surface: SurfaceMesh, phi: np.ndarray | None = None) -> np.ndarray:
+    """The desired speed per triangle as a fraction of the level's (m,): 1 on the levels,
+    and on a stair its ``speed_up`` where it is walked up, ``speed_down`` where down. Which
+    way a stair is walked is read from the gradient of ``phi`` (a potential, e.g. the
+    distance to the exits, decreasing towards them) along the stair's slope; without
+    ``phi`` everyone goes down (the exits below). A stair without rise is a flat connector,
+    walked at the level's speed."""
     b = surface.building
-    base = np.broadcast_to(np.asarray(level_cost, float), (surface.n_triangles,)).copy()
-    for k, p in enumerate(surface.pieces):
+    out = np.ones(surface.n_triangles)
+    for p in surface.pieces:
         if p.kind != "stair":
             continue
         st = next(x for x in b.stairs if x.name == p.name)
         tris = p.triangles
-        if phi is None or b.rise(st) == 0:
+        if b.rise(st) == 0:
+            continue
+        if phi is None:
             down = np.ones(len(tris), bool)
         else:
             pts = surface.points[surface.triangles[tris]]  # (k, 3, 3)
             dz = pts[:, :, 2] - pts[:, :, 2].mean(axis=1)[:, None]
-            dphi = phi[surface.triangles[tris]] - phi[surface.triangles[tris]].mean(axis=1)[
-                :, None]
+            f = np.asarray(phi, float)[surface.triangles[tris]]
+            dphi = f - f.mean(axis=1)[:, None]
             # phi falls towards the exits: walking down the stair where phi grows with z
             down = np.sum(dz * dphi, axis=1) >= 0.0
-        base[tris] = np.where(down, base[tris] / st.speed_down, base[tris] / st.speed_up)
+        out[tris] = np.where(down, st.speed_down, st.speed_up)
+    return out
+
+
+def stair_costs(surface: SurfaceMesh, phi: np.ndarray | None = None, *,
+                level_cost: float | np.ndarray = 1.0) -> np.ndarray:
+    """The cost [s/m] per triangle of walking on the surface: ``level_cost`` on the levels
+    (a scalar or one value per triangle) and on a stair ``level_cost / speed_up`` going up,
+    ``/ speed_down`` going down (:func:`stair_factors`)."""
+    base = np.broadcast_to(np.asarray(level_cost, float), (surface.n_triangles,)).copy()
+    stair = surface.piece_is_stair[surface.piece]
+    base[stair] = base[stair] / stair_factors(surface, phi)[stair]
     return base
+
+
+def atlas_direction_field(atlas, phi: np.ndarray) -> DirectionField:
+    """The desired-direction field of the surface potential ``phi`` (one value per surface
+    vertex) on the building's atlas (:class:`~pedmesh.mesh.atlas.Atlas`), in each piece's
+    chart. It is built on :attr:`~pedmesh.mesh.atlas.Atlas.steer`, where a stair edge is
+    neither a wall nor an exit; the directions at the vertices along a stair edge (not its
+    end points, which are on walls and keep their own side's, kept in the walkable wedge)
+    are the descent of the gradients of the triangles on both sides."""
+    pa = np.asarray(phi, float)[atlas.to_surface]
+    df = DirectionField(atlas.steer, pa)
+    hv = _hinge_inner_vertices(atlas)
+    if len(hv):
+        g = atlas.glued
+        ptr, idx = g.vertex_triangles
+        counts = np.diff(ptr)[hv]
+        ring = idx[np.concatenate([np.arange(ptr[v], ptr[v + 1]) for v in hv])]
+        w = g.areas[ring][:, None] * df.triangle_gradients[ring]
+        sums = np.add.reduceat(w, np.concatenate([[0], np.cumsum(counts)[:-1]]), axis=0)
+        norm = np.hypot(sums[:, 0], sums[:, 1])
+        e = np.where(norm[:, None] > 0, -sums / np.where(norm > 0, norm, 1.0)[:, None], 0.0)
+        e[~np.isfinite(pa[hv])] = 0.0
+        df.vertex_directions[hv] = e
+        df._packed = None
+    _hinge_jambs(atlas, df, pa)
+    _inflow_hinges_as_walls(atlas, df)
+    return df
+
+
+def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
+    """On the side of a stair edge where the route comes in over it (the direction of the
+    triangle across it points over it, to this side), the edge steers like a wall: the component
+    of the direction into it is removed near it (as at a wall,
+    :func:`pedmesh.eikonal.direction._interpolate`), so that nobody is steered onto a
+    stair against the way over it, e.g. while turning round the end of the wall beside
+    its foot."""
+    m = atlas.open
+    cache = atlas.steer._cache
+    if "hinge_edges" not in cache:
+        b = m.boundary_edges
+        he = b[(m.edge_kind[b] == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)]
+        t = m.edge_triangles[he, 0]
+        loc = np.argmax(m.triangle_edges[t] == he[:, None], axis=1)
+        g = atlas.glued
+        both = g.edge_triangles[g.find_edges(m.edges[he])]
+        across = np.where(both[:, 0] == t, both[:, 1], both[:, 0])
+        cache["hinge_edges"] = (he, t, loc, across)
+    he, t, loc, across = cache["hinge_edges"]
+    if len(he) == 0:
+        return
+    n = m.edge_normals[he]  # out of the triangle's side, over the edge
+    d = df.triangle_directions[across]
+    inflow = np.sum(d * n, axis=1) < 0.0
+    #: the stair edges (edges of the open atlas) the route comes in over on their side
+    df.inflow_hinge_edges = he[inflow]
+    P = df.packed
+    P[t[inflow], 12 + 2 * loc[inflow]] = n[inflow, 0]
+    P[t[inflow], 13 + 2 * loc[inflow]] = n[inflow, 1]
+
+
+def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
+    """Where a stair edge ends on a wall, in the triangles of the end point's fan that do
+    not touch the stair edge, the end point's direction is the wall's, the way the
+    potential falls along it (towards the stair edge for those going onto it, away for
+    those coming off it): a pedestrian who turns around the corner (the wall's end) is
+    steered along the wall, not into it (as at a door jamb, :mod:`pedmesh.eikonal.direction`)."""
+    cache = atlas.steer._cache
+    if "hinge_jambs" not in cache:
+        m = atlas.open
+        b = m.boundary_edges
+        kind = m.edge_kind[b]
+        e = m.edges[b]
+        hinge = (kind == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)
+        solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
+        on_hinge = np.zeros(m.n_points, bool)
+        on_hinge[e[hinge].ravel()] = True
+        rows = []  # (triangle, local corner, jamb vertex, the wall's other vertex)
+        ptr, idx = m.vertex_triangles
+        touches = np.zeros(m.n_triangles, bool)
+        he = b[hinge]
+        touches[m.edge_triangles[he, 0]] = True
+        for k in np.flatnonzero(solid):
+            for v, u in ((e[k, 0], e[k, 1]), (e[k, 1], e[k, 0])):
+                if not on_hinge[v]:
+                    continue
+                for t in idx[ptr[v]:ptr[v + 1]]:
+                    if not touches[t]:
+                        rows.append((t, int(np.flatnonzero(m.triangles[t] == v)[0]), v, u))
+        cache["hinge_jambs"] = np.array(rows, np.int64).reshape(-1, 4)
+    rows = cache["hinge_jambs"]
+    if len(rows) == 0:
+        return
+    P = df.packed
+    pts = atlas.open.points
+    t, loc, v, u = rows.T
+    d = pts[v] - pts[u]
+    d /= np.hypot(d[:, 0], d[:, 1])[:, None]
+    d = np.where((phi[v] <= phi[u])[:, None], d, -d)  # (the way phi falls along the wall)
+    ok = np.isfinite(phi[v]) & np.isfinite(phi[u])
+    P[t[ok], 6 + 2 * loc[ok]] = d[ok, 0]
+    P[t[ok], 7 + 2 * loc[ok]] = d[ok, 1]
+
+
+def _hinge_inner_vertices(atlas) -> np.ndarray:
+    """The atlas vertices on a stair edge that are not on a wall, an obstacle or an exit."""
+    cache = atlas.steer._cache
+    if "hinge_inner" not in cache:
+        m = atlas.open
+        b = m.boundary_edges
+        kind = m.edge_kind[b]
+        owner = m.edge_owner[b]
+        e = m.edges[b]
+        hinge = (kind == BoundaryKind.EXIT) & (owner >= atlas.n_exits)
+        on_hinge = np.zeros(m.n_points, bool)
+        on_hinge[e[hinge].ravel()] = True
+        on_other = np.zeros(m.n_points, bool)
+        on_other[e[~hinge].ravel()] = True
+        cache["hinge_inner"] = np.flatnonzero(on_hinge & ~on_other)
+    return cache["hinge_inner"]
+
+
+#: [m] the radius of the discs about the ends of the walls beside a stair's ends, and the
+#: factor of the walking cost in them (:func:`_corner_costs`)
+CORNER_RADIUS = 0.5
+CORNER_COST = 3.0
+
+
+def _corner_costs(atlas) -> np.ndarray:
+    """(m,) 1, and :data:`CORNER_COST` in the triangles within :data:`CORNER_RADIUS` of a
+    point where a stair edge ends on a wall. There the wall between the stair and the
+    level beside it ends; the way from one to the other turns round that end, and a route
+    that grazes it steers a pedestrian (who has a body) straight into it. With the corners
+    dearer the routes keep their distance, as people do."""
+    s = atlas.surface
+    m = atlas.open
+    b = m.boundary_edges
+    kind = m.edge_kind[b]
+    e = m.edges[b]
+    hinge = (kind == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)
+    solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
+    on_h = np.zeros(m.n_points, bool)
+    on_h[e[hinge].ravel()] = True
+    on_w = np.zeros(m.n_points, bool)
+    on_w[e[solid].ravel()] = True
+    ends = np.unique(atlas.to_surface[np.flatnonzero(on_h & on_w)])
+    out = np.ones(s.n_triangles)
+    if len(ends) == 0:
+        return out
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(s.points[ends]).query_ball_point(s.centroids, CORNER_RADIUS)
+    out[np.array([len(n) > 0 for n in near])] = CORNER_COST
+    return out
+
+
+class BuildingRoutes:
+    """Routes of a building for the models that run on its atlas: the potential on the
+    surface (:class:`SurfaceEikonalSolver`, the stairs at their speeds up or down), its
+    direction field on the atlas (:func:`atlas_direction_field`) and the stair speed factor
+    of every triangle (:func:`stair_factors`)."""
+
+    def __init__(self, atlas, exits: Sequence[str | int] | None = None) -> None:
+        self.atlas = atlas
+        self.surface = atlas.surface
+        self.solver = SurfaceEikonalSolver(self.surface, exits)
+        self._phi: np.ndarray | None = None
+        self.corner_cost = _corner_costs(atlas)
+
+
+    def solve(self, level_cost: float | np.ndarray = 1.0):
+        """``(phi, field, factors)``: the potential (surface vertices) for the level cost
+        [s/m] (a scalar, or one value per surface vertex or triangle), its direction field
+        on the atlas and the stair factors per triangle. Which way each stair is walked
+        comes from the previous solve (the first: from the distance)."""
+        s = self.surface
+        c = np.asarray(level_cost, float)
+        if c.shape == (s.n_points,):
+            c = c[s.triangles].mean(axis=1)
+        if self._phi is None:
+            self._phi = self.solver.solve(1.0)
+        factors = stair_factors(s, self._phi)
+        cost = np.broadcast_to(c, (s.n_triangles,)) / factors * self.corner_cost
+        phi = self.solver.solve(np.ascontiguousarray(cost))
+        self._phi = phi
+        return phi, atlas_direction_field(self.atlas, phi), stair_factors(s, phi)
 
 
 def surface_gradient(surface: SurfaceMesh, phi: np.ndarray) -> np.ndarray:

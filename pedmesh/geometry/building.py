@@ -279,6 +279,17 @@ class Building:
         return tuple(e.name for lv in self.levels for e in lv.room.exits)
 
     @property
+    def start_areas(self) -> tuple:
+        """Every level's start areas, level by level (:attr:`start_area_levels` names the
+        level of each)."""
+        return tuple(a for lv in self.levels for a in lv.room.start_areas)
+
+    @property
+    def start_area_levels(self) -> tuple[str, ...]:
+        """The level of each of :attr:`start_areas`."""
+        return tuple(lv.name for lv in self.levels for _ in lv.room.start_areas)
+
+    @property
     def area(self) -> float:
         """The walkable area [m^2] on the surface: the levels' and the stairs' true (sloped)
         areas."""

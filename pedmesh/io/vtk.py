@@ -96,15 +96,16 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
 
 
 def _grid(mesh):
-    """A VTK unstructured grid of the mesh's triangles (z = 0), built with VTK's own classes
+    """A VTK unstructured grid of the mesh's triangles (z = 0; a building's in 3-D), built with VTK's own classes
     (pyvista would add a quarter of a second of imports to every run)."""
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonCore import vtkPoints
     from vtkmodules.vtkCommonDataModel import VTK_TRIANGLE, vtkCellArray, vtkUnstructuredGrid
 
     pts = vtkPoints()
-    pts.SetData(numpy_to_vtk(np.column_stack([mesh.points, np.zeros(mesh.n_points)]),
-                             deep=True))
+    xyz = mesh.points if mesh.points.shape[1] == 3 else \
+        np.column_stack([mesh.points, np.zeros(mesh.n_points)])  # (a building is 3-D)
+    pts.SetData(numpy_to_vtk(np.ascontiguousarray(xyz), deep=True))
     m = mesh.n_triangles
     offsets = numpy_to_vtkIdTypeArray(np.arange(0, 3 * m + 1, 3, dtype=np.int64), deep=True)
     conn = numpy_to_vtkIdTypeArray(np.ascontiguousarray(mesh.triangles, np.int64).ravel(),
@@ -185,11 +186,13 @@ def _vtk_write(writer, path: Path) -> None:
 
 
 def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None) -> Path:
-    """Write a 2-D point cloud [m] with per-point fields to a ``.vtp`` file (pyvista)."""
+    """Write a point cloud [m] (n, 2) at z = 0, or (n, 3) in 3-D (a building's), with
+    per-point fields to a ``.vtp`` file (pyvista)."""
     import pyvista as pv
 
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    cloud = pv.PolyData(np.column_stack([pts, np.zeros(len(pts))]))
+    pts = np.asarray(points, dtype=float)
+    pts = pts.reshape(-1, 3) if pts.ndim == 2 and pts.shape[1] == 3 else pts.reshape(-1, 2)
+    cloud = pv.PolyData(pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))]))
     if len(pts):
         cloud.verts = np.column_stack([np.ones(len(pts), np.int64), np.arange(len(pts))]).ravel()
     for k, v in (point_data or {}).items():

@@ -172,6 +172,11 @@ class SurfaceMesh:
         """The walkable surface's area [m^2]."""
         return float(self.areas.sum())
 
+    @cached_property
+    def piece_is_stair(self) -> np.ndarray:
+        """(p,) True for the stairs among the pieces."""
+        return np.array([p.kind == "stair" for p in self.pieces], bool)
+
     def piece_index(self, name: str) -> int:
         """The index of the piece (level or stair) called ``name``."""
         for k, p in enumerate(self.pieces):

@@ -511,26 +511,40 @@ class RunWriter:
     def trajectory_frame(self, frame: int, ids: np.ndarray, points: np.ndarray,
                          frame_rate: float, description: str, *,
                          orientation: np.ndarray | None = None,
-                         walkable_wkt: str | None = None) -> None:
+                         walkable_wkt: str | None = None, z: np.ndarray | None = None,
+                         place: Sequence[str] | None = None) -> None:
         """Append one frame to trajectories.txt (PedPy text format) and to
         trajectories.sqlite (JuPedSim's schema, version 2). ``orientation`` (n, 2): unit
         heading of each row (JuPedSim's ori_x/ori_y; zero where unknown);
-        ``walkable_wkt``: the walkable area, stored with the first frame."""
+        ``walkable_wkt``: the walkable area, stored with the first frame. A building's
+        rows also carry their height ``z`` [m] and the level or stair they are on
+        (``place``): two more columns of trajectories.txt and the table ``place_data``
+        (frame, id, z, place) of trajectories.sqlite (the plan x, y stay in
+        trajectory_data; :func:`pedmesh.analysis.level_trajectories` takes one level's rows
+        for PedPy)."""
         ids = np.asarray(ids, np.int64)
         points = np.asarray(points, float).reshape(-1, 2)
+        building = z is not None
         if self._traj is None:
             self._traj = self._open(
                 "trajectories.txt",
                 f"# pedmesh {__version__}: {description}\n"
                 f"# framerate: {frame_rate:g} fps (frame k is at t = k / framerate s)\n"
-                "# unit: x/m, y/m (coordinates in metres)\n"
-                "# id frame x y\n")
+                + ("# unit: x/m, y/m, z/m (plan coordinates and height in metres; place: "
+                   "the level or stair)\n# id frame x y z place\n" if building else
+                   "# unit: x/m, y/m (coordinates in metres)\n# id frame x y\n"))
             sql_path = self.dir / "trajectories.sqlite"
             try:
-                self._sql_open(frame_rate, walkable_wkt)
+                self._sql_open(frame_rate, walkable_wkt, building)
             except (OSError, sqlite3.Error) as exc:
                 raise _write_error(sql_path, exc) from None
-        lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f}\n" for i, p in zip(ids, points))
+        if building:
+            z = np.asarray(z, float).reshape(-1)
+            lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f} {h:.4f} {w}\n"
+                            for i, p, h, w in zip(ids, points, z, place))
+        else:
+            lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f}\n"
+                            for i, p in zip(ids, points))
         self._append(self._traj, lines)
         ori = np.zeros_like(points) if orientation is None else np.asarray(orientation, float)
         con = self._sql
@@ -539,12 +553,16 @@ class RunWriter:
                             zip([frame] * len(ids), ids.tolist(), points[:, 0].tolist(),
                                 points[:, 1].tolist(), ori[:, 0].tolist(),
                                 ori[:, 1].tolist()))
+            if building:
+                con.executemany("INSERT INTO place_data VALUES (?, ?, ?, ?)",
+                                zip([frame] * len(ids), ids.tolist(), z.tolist(), list(place)))
             con.execute("INSERT INTO frame_data VALUES (?, ?)", (frame, self._geo_hash))
             con.commit()
         except (OSError, sqlite3.Error) as exc:
             raise _write_error(self.dir / "trajectories.sqlite", exc) from None
 
-    def _sql_open(self, frame_rate: float, walkable_wkt: str | None) -> None:
+    def _sql_open(self, frame_rate: float, walkable_wkt: str | None,
+                  building: bool = False) -> None:
         """Create trajectories.sqlite in JuPedSim's schema (version 2: trajectory_data with
         orientation, metadata with version, fps and bounds, geometry as WKT by hash,
         frame_data naming each frame's geometry), which PedPy 1.x and JuPedSim read."""
@@ -562,6 +580,9 @@ class RunWriter:
         con.execute("CREATE TABLE frame_data (frame INTEGER NOT NULL,"
                     " geometry_hash INTEGER NOT NULL)")
         con.execute("CREATE INDEX frame_id_idx ON trajectory_data(frame, id)")
+        if building:
+            con.execute("CREATE TABLE place_data (frame INTEGER NOT NULL, id INTEGER NOT NULL,"
+                        " z REAL NOT NULL, place TEXT NOT NULL)")
         wkt = walkable_wkt or "POLYGON EMPTY"
         # a stable 63-bit hash (Python's hash() of a str changes between processes)
         self._geo_hash = int.from_bytes(hashlib.sha256(wkt.encode()).digest()[:8], "big") >> 1

@@ -12,6 +12,7 @@ from typing import Any, Callable
 
 import numpy as np
 import shapely
+import shapely.affinity
 
 from ... import parameters as P
 from ...analysis.evacuation import evacuation_times_from_curve
@@ -54,12 +55,37 @@ def initial_density(room, mesh) -> np.ndarray:
 
 
 def area_densities(room, mesh) -> list[np.ndarray]:
-    """:func:`initial_density` of each start area separately (a list of (m,) arrays)."""
+    """:func:`initial_density` of each start area separately (a list of (m,) arrays). A
+    building's (``mesh`` its surface) are those of its levels' start areas, in order."""
+    if hasattr(room, "levels"):
+        return _building_area_densities(room, mesh)
+    return _area_densities(room.start_areas, room.walkable, mesh.points, mesh)
+
+
+def _building_area_densities(building, surface) -> list[np.ndarray]:
+    from ...mesh.atlas import build_atlas
+
+    atlas = build_atlas(surface)
     out = []
-    tris = shapely.polygons(mesh.points[mesh.triangles])
-    for s in room.start_areas:
+    for lv in building.levels:  # each level's start areas, moved to its place in the atlas
+        dx, dy = atlas.level_shift(lv.name)
+        walkable = shapely.affinity.translate(lv.room.walkable, dx, dy)
+        areas = [moved_start_area(a, dx, dy) for a in lv.room.start_areas]
+        out += _area_densities(areas, walkable, atlas.glued.points, atlas.glued)
+    return out
+
+
+def moved_start_area(a, dx: float, dy: float):
+    """The start area ``a`` moved by (dx, dy) [m] (to a level's place in the atlas)."""
+    return dataclasses.replace(a, polygon=[(x + dx, y + dy) for x, y in a.polygon])
+
+
+def _area_densities(start_areas, walkable, points, mesh) -> list[np.ndarray]:
+    out = []
+    tris = shapely.polygons(points[mesh.triangles])
+    for s in start_areas:
         rho = np.zeros(mesh.n_triangles)
-        shape = s.shape.intersection(room.walkable)
+        shape = s.shape.intersection(walkable)
         if s.spacing is not None:
             d = 1.0 / s.spacing**2
         elif s.density is not None:
@@ -72,6 +98,12 @@ def area_densities(room, mesh) -> list[np.ndarray]:
         rho += d * np.clip(frac, 0.0, 1.0)
         out.append(rho)
     return out
+
+
+def _is_surface(mesh) -> bool:
+    from ...mesh.surface import SurfaceMesh
+
+    return isinstance(mesh, SurfaceMesh)
 
 
 def _split(overrides: dict[str, Any], targets: dict[str, set[str]]) -> dict[str, dict]:
@@ -103,14 +135,27 @@ class MacroRun:
         self.options = MacroRunOptions(**parts["run"])
         self.model = entry.physics(**P.check_values(parts["model"], model_params))
         self.name = entry.name
+        #: the mesh the run reports on (a building's 3-D surface); the solver's is
+        #: :attr:`fv_mesh` (a building's glued atlas, :mod:`pedmesh.mesh.atlas`)
         self.mesh = mesh
+        self.atlas = None
+        fv_mesh = mesh
+        if _is_surface(mesh):
+            from ...mesh.atlas import build_atlas
+
+            if not entry.surface:
+                raise ParameterError(f"model '{entry.name}' does not run on buildings (levels "
+                                     "and stairs) yet; eos, rdue and pw do")
+            self.atlas = build_atlas(mesh)
+            fv_mesh = self.atlas.glued
+        self.fv_mesh = fv_mesh
         #: things the user should know about this run (e.g. a calibration for other parameters)
         self.warnings = list(getattr(self.model, "warnings", []))
         from .solver import threading_layer, threading_note
 
         if threading_layer() != "tbb":  # (say what it costs: pedmesh._threads)
             self.warnings.append(threading_note())
-        self.solver = FVSolver(mesh, self.model, self.fv_options)
+        self.solver = FVSolver(fv_mesh, self.model, self.fv_options)
         #: start areas with a premovement time or arrivals (entrances): (their density (m,)
         #: [ped/m^2], the distribution or schedule, their number of people [ped]); their
         #: people appear where they stand, at rest, as its CDF grows (a delayed source)
@@ -252,6 +297,8 @@ class MacroRun:
             vel = speed[:, None] * self.solver.e_cell
         else:
             vel = self.model.velocity(Q)
+        if self.atlas is not None:  # a building: the velocity in 3-D, along the surface
+            vel = self.atlas.cell_vectors_3d(vel)
         return {"rho": rho, "velocity": vel}
 
     def write_frame(self, writer, frame: int) -> None:
@@ -310,21 +357,26 @@ class ContinuumEntry(ModelEntry):
 
     physics: Callable[..., MacroModel] | None = None
     model_parameters: tuple[P.Parameter, ...] = ()
+    #: whether the model runs on a building's surface (levels and stairs)
+    surface: bool = False
 
 
 def register_continuum_model(name: str, physics: Callable[..., MacroModel],
                              parameters: tuple[str | P.Parameter, ...], *,
                              aliases: tuple[str, ...] = (), description: str = "",
-                             replace: bool = False) -> ContinuumEntry:
+                             replace: bool = False, surface: bool = False) -> ContinuumEntry:
     """Register the continuum model ``physics(**parameters) -> MacroModel`` under ``name``:
     ``parameters`` are its physical parameters (declarations, or the names of declared
     ones); every continuum model also takes the solver's and the run's (:data:`NUMERICS`).
-    ``pedmesh run --model NAME`` then solves it with the finite-volume core."""
+    ``pedmesh run --model NAME`` then solves it with the finite-volume core; ``surface``:
+    also on a building's surface (the model's fluxes and sources only read the
+    desired direction, whose length is the stair's speed factor there)."""
     own = tuple(p if isinstance(p, P.Parameter) else P.get(p) for p in parameters)
     return register_model(ContinuumEntry(
         name=name, build=functools.partial(MacroRun, model=name), parameters=own + NUMERICS,
         scale=CONTINUUM, options=frozenset({"rho0"}), random=False, aliases=aliases,
-        description=description, physics=physics, model_parameters=own), replace=replace)
+        description=description, physics=physics, model_parameters=own, surface=surface),
+        replace=replace)
 
 
 def macro_model(name: str, **params) -> MacroModel:

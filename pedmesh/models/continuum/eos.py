@@ -82,6 +82,6 @@ class EquationOfStateModel(BarotropicModel):
 
 register_continuum_model("eos", EquationOfStateModel,
                          BASE_PARAMETERS + SFM_PARAMETERS + ("calibration",),
-                         aliases=("calibrated",),
+                         aliases=("calibrated",), surface=True,
                          description="Payne-Whitham-type with the social force model's measured "
                                      "equation of state")

@@ -300,6 +300,9 @@ class ImplicitPressure:
         self.ln = np.ascontiguousarray(mesh.edge_lengths[interior])
         c = mesh.centroids
         dc = c[self.R] - c[self.L]
+        shift = getattr(mesh, "cell_shift", None)
+        if shift is not None:  # (a building's atlas: R's centroid in L's frame)
+            dc = dc + shift(self.L, self.R)
         d = dc[:, 0] * self.nx + dc[:, 1] * self.ny  # normal distance of the centroids
         dist = np.hypot(dc[:, 0], dc[:, 1])
         d = np.where(d > 0.2 * dist, d, dist)

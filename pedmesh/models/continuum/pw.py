@@ -25,6 +25,6 @@ class PayneWhitham(BarotropicModel):
 
 
 register_continuum_model("pw", PayneWhitham, ("c0",) + BASE_PARAMETERS,
-                         aliases=("payne-whitham",),
+                         aliases=("payne-whitham",), surface=True,
                          description="Payne-Whitham: isothermal pressure c0^2 rho, relaxation to "
                                      "U_e")

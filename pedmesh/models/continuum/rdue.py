@@ -166,6 +166,6 @@ class RDUE(MacroModel):
         return self.speed.parameters()
 
 
-register_continuum_model("rdue", RDUE, SPEED_PARAMETERS, aliases=("hughes",),
+register_continuum_model("rdue", RDUE, SPEED_PARAMETERS, aliases=("hughes",), surface=True,
                          description="the reactive dynamic user equilibrium (Hughes-type): "
                                      "density only, walking at U_e(rho) along the route")

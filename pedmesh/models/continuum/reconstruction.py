@@ -173,14 +173,20 @@ def _pinv_t(U, s, Vt):
                      ).transpose(0, 2, 1)
 
 
-def _store_pairs(ci, ca, cb, both, cen, h, pairs, pair_inv, n_pairs) -> None:
+def _store_pairs(ci, ca, cb, both, cen, h, pairs, pair_inv, n_pairs, shift=None) -> None:
     """Of the candidate sector pairs (cells ``ca``, ``cb``) of cells ``ci``, the
     well-conditioned ones (scaled |det| > 1e-3 of the largest entry squared), the first
     MAX_PAIRS of each cell into ``pairs``, their inverse 2x2 matrices into ``pair_inv``, and
     their count into ``n_pairs``: in the order listed, or with ``both`` (bool per candidate)
     those of two face neighbours first, then by |det| from the largest (ties in the order
-    listed). Each cell's candidates must come in one call."""
-    M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]], axis=1)
+    listed). Each cell's candidates must come in one call. ``shift``: the mesh's
+    ``cell_shift`` (a building's atlas), which moves the centroids into cell i's frame."""
+    if shift is None:
+        M = np.stack([(cen[ca] - cen[ci]) / h[ci, None], (cen[cb] - cen[ci]) / h[ci, None]],
+                     axis=1)
+    else:
+        M = np.stack([(cen[ca] + shift(ci, ca) - cen[ci]) / h[ci, None],
+                      (cen[cb] + shift(ci, cb) - cen[ci]) / h[ci, None]], axis=1)
     d = np.abs(np.linalg.det(M))
     good = d > 1e-3 * np.abs(M).reshape(len(ci), -1).max(axis=1) ** 2
     ci, ca, cb, d, M = ci[good], ca[good], cb[good], d[good], M[good]
@@ -212,6 +218,9 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     # least-squares rows: cell averages of the basis of cell i over stencil cells
     sj = np.where(stencil >= 0, stencil, 0)
     Pj = P[sj]  # (m, S, 3, 2)
+    shift = getattr(mesh, "cell_shift", None)  # (a building's atlas: cells of other pieces
+    if shift is not None:  # are moved into cell i's frame)
+        Pj = Pj + shift(np.arange(m)[:, None], sj)[:, :, None, :]
     q = np.einsum("pb,msbd->mspd", INTERIOR_BARY, Pj)
     xi = (q[..., 0] - cen[:, None, None, 0]) / h[:, None, None]
     eta = (q[..., 1] - cen[:, None, None, 1]) / h[:, None, None]
@@ -263,7 +272,7 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
         cand_a.append(two[:, 0])
         cand_b.append(two[:, 1])
     _store_pairs(np.concatenate(cand_i), np.concatenate(cand_a), np.concatenate(cand_b),
-                 None, cen, h, pairs, pair_inv, n_pairs)
+                 None, cen, h, pairs, pair_inv, n_pairs, shift)
     # boundary cells: also pairs with second-ring cells; the pairs of two face neighbours
     # first, then the best conditioned
     cand = []  # (cell, a, b, both face neighbours)
@@ -276,7 +285,7 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     if cand:
         c = np.array(cand, np.int64)
         _store_pairs(c[:, 0], c[:, 1], c[:, 2], c[:, 3].astype(bool), cen, h, pairs,
-                     pair_inv, n_pairs)
+                     pair_inv, n_pairs, shift)
     # Gauss points on the edges and basis values at the 9 points of every cell
     e = mesh.edges
     p0 = mesh.points[e[:, 0]]
@@ -285,6 +294,9 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     t2e = mesh.triangle_edges
     cell_pts = np.zeros((m, 9, 2))
     cell_pts[:, :6] = edge_pt[t2e].reshape(m, 6, 2)
+    if shift is not None:  # (an edge's points are in the frame of its first cell)
+        e2t0 = mesh.edge_triangles[t2e, 0]  # (m, 3)
+        cell_pts[:, :6] += np.repeat(shift(np.arange(m)[:, None], e2t0), 2, axis=1)
     cell_pts[:, 6:] = np.einsum("pb,mbd->mpd", INTERIOR_BARY, P)
     xi = (cell_pts[..., 0] - cen[:, None, 0]) / h[:, None]
     eta = (cell_pts[..., 1] - cen[:, None, 1]) / h[:, None]

@@ -288,7 +288,14 @@ class FVSolver:
         elif self.model.needs_route:
             from ...eikonal import EikonalSolver
 
-            self._eikonal = EikonalSolver(mesh)
+            atlas = mesh._cache.get("atlas")  # a building's glued atlas: routes on its surface
+            if atlas is not None:
+                from ...eikonal.surface import BuildingRoutes
+
+                self._eikonal = BuildingRoutes(atlas)
+                self.phi = np.zeros(atlas.surface.n_points)  # (on the surface's vertices)
+            else:
+                self._eikonal = EikonalSolver(mesh)
         self._route_done = False
         self._route_t = -math.inf  # time of the last route solve [s]
         self._sample_directions()
@@ -306,11 +313,18 @@ class FVSolver:
                 and t < self._route_t + self.options.route_interval * (1 - 1e-9)):
             return
         self._route_t = -math.inf if t is None else t
+        from ...eikonal import EikonalSolver
         from ...eikonal.direction import DirectionField, _vertex_averaging
 
-        rho_v = _vertex_averaging(self.mesh) @ np.maximum(Q[:, 0], 0.0)
-        self.phi = self._eikonal.solve(self.model.route_cost(rho_v))
-        df = DirectionField(self.mesh, self.phi)
+        factors = None
+        if isinstance(self._eikonal, EikonalSolver):
+            rho_v = _vertex_averaging(self.mesh) @ np.maximum(Q[:, 0], 0.0)
+            self.phi = self._eikonal.solve(self.model.route_cost(rho_v))
+            df = DirectionField(self.mesh, self.phi)
+        else:  # a building (BuildingRoutes): the potential on its surface
+            surface = self._eikonal.surface
+            rho_v = _vertex_averaging(surface) @ np.maximum(Q[:, 0], 0.0)
+            self.phi, df, factors = self._eikonal.solve(self.model.route_cost(rho_v))
         m = self.mesh.n_triangles
         if self.model.direction_dependent_flux:  # (else no flux reads it)
             self.e_edge = df.at(self.recon.edge_pt.reshape(-1, 2),
@@ -319,6 +333,15 @@ class FVSolver:
             self.e_edge[near] = _slide_along_walls(self.e_edge[near], normals)
         self.e_int = df.at(self.int_pts.reshape(-1, 2), np.repeat(np.arange(m), 3)).reshape(m, 3, 2)
         self.e_cell = df.triangle_directions
+        if factors is not None and np.any(factors != 1.0):
+            # on a stair the desired velocity is the stair's share of the level's: the
+            # direction scaled by it (at a stair edge the slower side's)
+            fe = np.minimum(factors[self.e2t[:, 0]],
+                            np.where(self.e2t[:, 1] >= 0, factors[np.maximum(self.e2t[:, 1], 0)],
+                                     np.inf))
+            self.e_edge = self.e_edge * fe[:, None, None]
+            self.e_int = self.e_int * factors[:, None, None]
+            self.e_cell = self.e_cell * factors[:, None]
         self._sample_directions()
         self._route_done = True
 

@@ -3,6 +3,7 @@
 and its run object (:mod:`~pedmesh.models.sfm.adapter`), registered as ``sfm``."""
 
 from .adapter import SFMRun
+from .entry import ENTRY  # (registers the model)
 from .params import SFMNumerics, SocialForceParams
 from .simulation import Simulation
 

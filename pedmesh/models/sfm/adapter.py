@@ -11,9 +11,8 @@ import numpy as np
 
 from ...errors import ParameterError
 from ...analysis.evacuation import evacuation_times
-from ..registry import PARTICLES, ModelEntry, register_model
 
-__all__ = ["SFMRun", "ENTRY"]
+__all__ = ["SFMRun"]
 
 
 class SFMRun:
@@ -44,12 +43,7 @@ class SFMRun:
             # the mesh was made from (the driver checked that their walls and exits match)
             mesh = dataclasses.replace(mesh, room=room)
         rate = trajectory_rate
-        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
-            raise ParameterError(f"trajectory rate must be a positive number of frames per "
-                                 f"second, got {rate!r}")
-        if rate * self.numerics.dt > 1.0 + 1e-9:
-            raise ParameterError(f"trajectory rate {rate:g} /s is above one frame per time "
-                                 f"step (dt = {self.numerics.dt:g} s)")
+        self._check_rate(rate)
         if seed is not None and positions is None:
             from .placement import seeded_positions
 
@@ -75,6 +69,21 @@ class SFMRun:
         self.sim = Simulation(mesh, positions, params=self.params, numerics=self.numerics,
                               reroute=not static_routes, population=population, seed=seed)
         self.mesh = mesh
+        room = room if room is not None else mesh.room
+        self._finish_init(static_routes, rate, room.walkable.wkt if room is not None else None)
+
+    def _check_rate(self, rate: float) -> None:
+        """A one-line error for a trajectory rate that is not positive or above one frame per
+        time step."""
+        if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate > 0):
+            raise ParameterError(f"trajectory rate must be a positive number of frames per "
+                                 f"second, got {rate!r}")
+        if rate * self.numerics.dt > 1.0 + 1e-9:
+            raise ParameterError(f"trajectory rate {rate:g} /s is above one frame per time "
+                                 f"step (dt = {self.numerics.dt:g} s)")
+
+    def _finish_init(self, static_routes: bool, rate: float, walkable_wkt: str | None) -> None:
+        """The output settings and records, once ``sim`` is built."""
         self.static_routes = static_routes
         self.sample_interval = self.numerics.sample_interval
         self.output_interval = self.numerics.output_interval
@@ -84,8 +93,7 @@ class SFMRun:
         if abs(steps - round(steps)) > 1e-6:
             self.warnings.append(f"1 / (trajectory rate x dt) = {steps:.4g} is not a whole "
                                  "number: trajectory frames are up to one time step late")
-        room = room if room is not None else mesh.room
-        self._walkable_wkt = room.walkable.wkt if room is not None else None
+        self._walkable_wkt = walkable_wkt
         n = self.sim.n_initial
         self._traj_frame = 0  # the next trajectory frame
         self._traj_out = np.zeros(n, bool)  # leavers whose last trajectory row is written
@@ -232,20 +240,3 @@ class SFMRun:
             "trajectory_frames": self._traj_frame,
             "time_split_s": {"forces": tm.forces, "settle": tm.settle, "routing": tm.routing},
         }
-
-
-def _parameters() -> tuple:
-    from dataclasses import fields
-
-    from .params import SFMNumerics, SocialForceParams
-
-    return tuple(f.metadata["parameter"] for cls in (SocialForceParams, SFMNumerics)
-                 for f in fields(cls))
-
-
-#: the social force model's registry entry
-ENTRY = register_model(ModelEntry(
-    name="sfm", build=SFMRun, parameters=_parameters(), scale=PARTICLES,
-    options=frozenset({"static_routes", "positions", "trajectory_rate", "seed"}),
-    random=True, aliases=("sf", "sf1", "social-force"),
-    description="the social force model of the paper (one Newton equation per pedestrian)"))

@@ -17,6 +17,8 @@ import numpy as np
 from ...eikonal.direction import _inside_packed, _interpolate
 from ...speed import shape
 from .crowding import crowd_factors
+from .forces import pair_force
+from .hinge_kernels import hinge_accel, hinge_density
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
 #: barycentric margin of the division-free "still inside its triangle" test; anything
@@ -126,32 +128,6 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
                     if with_density:
                         rho[i] += rhoi
     return m_near, m_far
-
-
-@nb.njit(cache=True, inline="always")
-def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij):
-    """Force [N] on pedestrian i from j: ``dx, dy`` = x_i - x_j at distance ``d`` > 0 and
-    ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((s_ij - d)/B) and the body force
-    k (r_ij - d)_+ along n_ij, and the sliding friction kappa (r_ij - d)_+ <v_j - v_i, t_ij>
-    t_ij with t_ij = (-n_y, n_x). ``rij`` is the sum of the body radii [m], ``sij`` that of
-    the social radii [m] (the space the two keep, :func:`social_radii`; ``sij = rij`` in the
-    paper's model). The one definition used for pairs, walls (a resting partner at the
-    contact point) and the calibration."""
-    nx_ = dx / d
-    ny_ = dy / d
-    ov = rij - d
-    f = A * math.exp((sij - d) * invB)
-    fx = f * nx_
-    fy = f * ny_
-    if ov > 0.0:
-        fx += k * ov * nx_
-        fy += k * ov * ny_
-        tx = -ny_
-        ty = nx_
-        ft = kappa * ov * (dvx * tx + dvy * ty)
-        fx += ft * tx
-        fy += ft * ty
-    return fx, fy
 
 
 @nb.njit(cache=True)
@@ -423,7 +399,7 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
           const_u, use_const, F, rho, e, with_density, toff, tbuf, space, rs, wmap, wgeo,
-          cf, ue):
+          cf, ue, hinge):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
     desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
     else as they are). Per pedestrian i: body radius ``rad[i]`` [m], free speed ``u0[i]``
@@ -437,7 +413,8 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     ``space[3]``, ``space[4]``: the crowding stretch and knee [ped/m^2] of
     :func:`crowd_density` (stretch 1: off), with the free-width map ``wmap`` and ``wgeo`` =
     (x0, y0, 1/cell, queue width, crowd width) (:mod:`pedmesh.models.sfm.crowding`; work arrays
-    ``cf``, ``ue``)."""
+    ``cf``, ``ue``). ``hinge``: the pairs across a building's stair edges (indices,
+    shifts and their number; :mod:`pedmesh.models.sfm.hinge_kernels`; none in a room)."""
     crowd = space[3] > 1.0
     if crowd:
         crowd_factors(x, n, wmap, wgeo[0], wgeo[1], wgeo[2], wgeo[3], wgeo[4], cf)
@@ -452,6 +429,10 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
         soc = rs
     pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m,
                     R, F, rho, with_density, soc, space[2], e)
+    hi, hj, hs, nh = hinge
+    if nh > 0:
+        hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
+                    with_density, soc, space[2], e)
     wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
                rc_w, rad, A, B, k, kappa, m, F, soc)
     inv_tau = 1.0 / tau
@@ -566,7 +547,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
              const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages,
-             toff, tbuf, space, rs, wmap, wgeo, cf, ue):
+             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
@@ -586,11 +567,13 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
                                 pi, pj, rho, rc_d, R, not every)
     if n_near < 0:
         return -1
+    if hinge[3] > 0 and not every:  # the densities across a building's stair edges
+        hinge_density(x, hinge[3], hinge[0], hinge[1], hinge[2], rc_d, R, rho)
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue)
+          wgeo, cf, ue, hinge)
     for i in range(n):
         rho_out[i] = rho[i]
         for d in range(2):
@@ -605,7 +588,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue)
+          wgeo, cf, ue, hinge)
     for i in range(n):
         for d in range(2):
             x1 = xs[i, d]
@@ -621,7 +604,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue)
+          wgeo, cf, ue, hinge)
     for i in range(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])

@@ -101,6 +101,8 @@ class Simulation:
     """
 
     model_name = "sfm"
+    #: a building's stair edges (:class:`~pedmesh.models.sfm.building.SurfaceSimulation`)
+    _hinges = None
 
     def __init__(self, mesh: TriMesh, positions: np.ndarray | None = None,
                  velocities: np.ndarray | None = None, *,
@@ -129,6 +131,10 @@ class Simulation:
         self._set_space_requirement(N)
         self._law = self.params.kernel_law()  # the desired-speed law (pedmesh.speed)
         self._set_routes(reroute, desired_velocity)
+        from .hinge_kernels import empty_pairs
+
+        #: the pairs across a building's stair edges (none in a room)
+        self._hinge_pairs = (*empty_pairs(), 0)
 
     # ------------------------------------------------------------------ set-up
     def _start_positions(self, positions: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
@@ -508,7 +514,7 @@ class Simulation:
             self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
             self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
             self.toff, self._tbuf, self._space, self._rs, self._wmap, self._wgeo, self._cf,
-            self._ue,
+            self._ue, self._hinge_pairs,
         )
 
     def step(self) -> int:
@@ -552,6 +558,8 @@ class Simulation:
             mesh.triangle_neighbors, mesh.triangle_edges, mesh.edge_kind, mesh.edge_owner,
             mesh.edge_normals, self._exit_of, self._exit_frac, self._dpack,
         )
+        if self._hinges is not None:  # a building: those on a stair edge pass over it
+            self._cross_hinges(n)
         gone = self._exit_of[:n] >= 0
         n_gone = int(gone.sum())
         if n_gone:

@@ -1,0 +1,333 @@
+"""The atlas of a building's surface: every piece's chart laid side by side in one plane,
+where the room models run.
+
+Each level and stair of a :class:`~pedmesh.mesh.surface.SurfaceMesh` has a flat chart
+(:class:`~pedmesh.mesh.surface.Piece`): lengths, angles and areas in it are the true ones
+on the surface. The atlas translates every chart by its own offset [m] so that no two
+pieces overlap (stacked floors lie side by side), and numbers the triangles as the surface
+does (atlas triangle t is surface triangle t). A stair edge then appears twice, once on
+each of its pieces. Across it, one chart meets the other by a pure translation: a stair's
+chart is its plane unrolled about its bottom edge (:mod:`pedmesh.mesh.building`), so its
+bottom edge lies where the level's plan has it and its top edge is shifted along the run by
+the slope's length less the run's. No vector turns when it crosses a stair edge: a
+velocity or a momentum has the same components on both sides.
+
+Two meshes share the atlas's points and triangles:
+
+* :attr:`Atlas.open`, a plain :class:`~pedmesh.mesh.TriMesh` on which every stair edge is an
+  exit of its own (named :data:`~pedmesh.mesh.building.HINGE_PREFIX` ...). The social force
+  model walks on it and moves a pedestrian who crosses such an exit to the other side
+  (:meth:`Atlas.hinge_of_exit`); the direction fields are built on it.
+* :attr:`Atlas.glued`, a :class:`GluedMesh`, on which the two copies of a stair edge are one
+  interior edge: its cells are face neighbours across the hinge and the finite volumes
+  send their fluxes across it (mass is conserved to round-off), while every cell keeps the
+  geometry of its own chart. :meth:`GluedMesh.cell_shift` says how far to move a cell's
+  points into a neighbour's frame.
+* :attr:`Atlas.steer`, on which the stair edges are boundary edges of no kind (neither walls
+  nor exits), for the direction fields (:func:`pedmesh.eikonal.surface.atlas_direction_field`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..errors import MeshError
+from .building import HINGE_PREFIX
+from .surface import SurfaceMesh
+from .triangle_mesh import BoundaryKind, TriMesh
+
+__all__ = ["Atlas", "GluedMesh", "build_atlas", "ATLAS_GAP"]
+
+#: [m] the gap between two pieces laid side by side in the atlas
+ATLAS_GAP = 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class GluedMesh(TriMesh):
+    """A :class:`~pedmesh.mesh.TriMesh` whose vertices ``canon[v] == canon[w]`` are one
+    vertex of the surface, so that the edges of two pieces along a stair edge are one
+    interior edge. Its geometry is that of each triangle's own points: an edge's length,
+    normal and midpoint are those of its first triangle (``edge_triangles[:, 0]``), and a
+    point of cell j is in cell i's frame after adding ``cell_shift(i, j)``.
+
+    ``piece`` (m,) the piece of each triangle; ``piece_shift`` (p, p, 2) [m]: added to the
+    coordinates of a point of piece b it gives them in the frame of piece a (zero between
+    a piece and itself)."""
+
+    canon: np.ndarray = field(default=None, repr=False)
+    piece: np.ndarray = field(default=None, repr=False)
+    piece_shift: np.ndarray = field(default=None, repr=False)
+
+    @cached_property
+    def _edge_data(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        tri = self.triangles
+        m = len(tri)
+        loc = tri[:, [[1, 2], [2, 0], [0, 1]]].reshape(-1, 2)  # (3 m, 2) actual vertices
+        keys = np.sort(self.canon[loc], axis=1)
+        ckeys, inv, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        inv = inv.ravel()
+        if counts.max() > 2:
+            e = int(np.argmax(counts))
+            raise MeshError(f"edge {tuple(ckeys[e])} is shared by {counts.max()} triangles")
+        owner = np.repeat(np.arange(m), 3)
+        order = np.argsort(inv, kind="stable")
+        e_sorted = inv[order]
+        first = np.ones(len(order), bool)
+        first[1:] = e_sorted[1:] != e_sorted[:-1]
+        e2t = np.full((len(ckeys), 2), -1, np.int64)
+        e2t[e_sorted[first], 0] = owner[order[first]]
+        e2t[e_sorted[~first], 1] = owner[order[~first]]
+        # an edge's vertices are those of its first triangle (its geometry is in that frame)
+        edges = np.empty_like(ckeys)
+        edges[e_sorted[first]] = np.sort(loc[order[first]], axis=1)
+        t2e = inv.reshape(m, 3).astype(np.int64)
+        object.__setattr__(self, "_ckeys", ckeys.astype(np.int64))
+        for a in (edges, t2e, e2t):
+            a.setflags(write=False)
+        return edges.astype(np.int64), t2e, e2t
+
+    def find_edges(self, pairs: np.ndarray) -> np.ndarray:
+        """Edge index of each vertex pair (any order, either copy of a stair edge's
+        vertices), -1 where no such edge exists."""
+        self._edge_data  # (sets _ckeys)
+        pairs = np.sort(self.canon[np.asarray(pairs, np.int64).reshape(-1, 2)], axis=1)
+        n = np.int64(self.n_points)
+        keys = self._ckeys[:, 0] * n + self._ckeys[:, 1]
+        q = pairs[:, 0] * n + pairs[:, 1]
+        pos = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
+        return np.where(keys[pos] == q, pos, -1)
+
+    @cached_property
+    def vertex_triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """The triangles around each vertex, on both sides of a stair edge (CSR)."""
+        flat = self.canon[self.triangles].ravel()
+        idx_c = np.argsort(flat, kind="stable") // 3
+        ptr_c = np.zeros(self.n_points + 1, np.int64)
+        np.cumsum(np.bincount(flat, minlength=self.n_points), out=ptr_c[1:])
+        counts = np.diff(ptr_c)[self.canon]
+        ptr = np.zeros(self.n_points + 1, np.int64)
+        np.cumsum(counts, out=ptr[1:])
+        start = np.repeat(ptr_c[self.canon], counts)
+        idx = idx_c[start + np.arange(ptr[-1]) - np.repeat(ptr[:-1], counts)]
+        for a in (ptr, idx):
+            a.setflags(write=False)
+        return ptr, idx
+
+    def cell_shift(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        """(..., 2) [m]: added to a point of cell ``j`` it gives the point in the frame of
+        cell ``i`` (zero within a piece)."""
+        return self.piece_shift[self.piece[np.asarray(i)], self.piece[np.asarray(j)]]
+
+
+@dataclass(frozen=True, eq=False)
+class Atlas:
+    """A building's surface laid out flat (see the module docstring).
+
+    ``offset`` (p, 2) [m]: a chart point ``uv`` of piece k is at ``uv + offset[k]`` in the
+    atlas; ``to_surface`` (n,): the surface vertex of each atlas vertex; ``hinges``: one row
+    per atlas exit that is a stair edge, (exit index in :attr:`open`, its piece, the piece
+    across, shift x, shift y [m]) with the shift that carries a point over to the other
+    side."""
+
+    surface: SurfaceMesh
+    open: TriMesh
+    glued: GluedMesh
+    steer: TriMesh
+    offset: np.ndarray
+    to_surface: np.ndarray
+    hinges: np.ndarray
+
+    @property
+    def n_exits(self) -> int:
+        """The building's own exits (the first exits of :attr:`open`)."""
+        return len(self.surface.exit_names)
+
+    @cached_property
+    def piece_of_vertex(self) -> np.ndarray:
+        """(n,) the piece of each atlas vertex."""
+        out = np.empty(self.open.n_points, np.int64)
+        start = 0
+        for k, p in enumerate(self.surface.pieces):
+            out[start:start + p.mesh.n_points] = k
+            start += p.mesh.n_points
+        return out
+
+    def to_3d(self, xy: np.ndarray, piece: np.ndarray) -> np.ndarray:
+        """3-D points (k, 3) [m] of atlas points ``xy`` (k, 2) on pieces ``piece`` (k,)."""
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        piece = np.asarray(piece, np.int64).reshape(-1)
+        out = np.empty((len(xy), 3))
+        for k, p in enumerate(self.surface.pieces):
+            sel = piece == k
+            if sel.any():
+                out[sel] = p.to_3d(xy[sel] - self.offset[k])
+        return out
+
+    def vectors_3d(self, uv: np.ndarray, piece: np.ndarray) -> np.ndarray:
+        """3-D vectors (k, 3) of chart vectors ``uv`` (k, 2) on pieces ``piece`` (k,)
+        (velocities: the same components in the atlas and in the chart)."""
+        axes = np.stack([p.axes for p in self.surface.pieces])  # (p, 2, 3)
+        a = axes[np.asarray(piece, np.int64)]
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        return uv[:, 0, None] * a[:, 0] + uv[:, 1, None] * a[:, 1]
+
+    def cell_vectors_3d(self, uv: np.ndarray) -> np.ndarray:
+        """:meth:`vectors_3d` of one vector per triangle (m, 2)."""
+        return self.vectors_3d(uv, self.surface.piece)
+
+    def level_shift(self, level: str) -> np.ndarray:
+        """(2,) [m]: a plan point of ``level`` is at plan + this in the atlas."""
+        return self.offset[self.surface.piece_index(level)]
+
+
+def build_atlas(surface: SurfaceMesh) -> Atlas:
+    """The :class:`Atlas` of a building's surface (cached on the surface)."""
+    if "atlas" in surface._cache:
+        return surface._cache["atlas"]
+    pieces = surface.pieces
+    offset = _offsets(pieces)
+    starts = np.cumsum([0] + [p.mesh.n_points for p in pieces])
+    pts = np.concatenate([p.mesh.points + offset[k] for k, p in enumerate(pieces)])
+    tri = np.concatenate([p.mesh.triangles + starts[k] for k, p in enumerate(pieces)])
+    to_surface = np.concatenate([p.vertices for p in pieces]).astype(np.int64)
+    if not np.array_equal(to_surface[tri], surface.triangles):
+        raise MeshError("the atlas's triangles are not the surface's (a mesh of another "
+                        "building?)")
+    first = np.full(surface.n_points, -1, np.int64)
+    first[to_surface[::-1]] = np.arange(len(pts))[::-1]
+    canon = first[to_surface]
+    # the tagged boundary: each piece's walls, obstacles and exits; stair edges are exits of
+    # the open atlas only
+    exit_names = list(surface.exit_names)
+    hinge_names: list[str] = []
+    hinge_piece: list[int] = []
+    seg, kind, owner, obstacles = [], [], [], []
+    hseg, howner = [], []
+    for k, p in enumerate(pieces):
+        m = p.mesh
+        for j in range(len(m.segments)):
+            sk, so = int(m.segment_kind[j]), int(m.segment_owner[j])
+            s = m.segments[j] + starts[k]
+            if sk == BoundaryKind.EXIT:
+                name = m.exit_names[so]
+                if name.startswith(HINGE_PREFIX):
+                    label = f"{name}@{p.name}"
+                    if label not in hinge_names:
+                        hinge_names.append(label)
+                        hinge_piece.append(k)
+                    hseg.append(s)
+                    howner.append(len(exit_names) + hinge_names.index(label))
+                    continue
+                so = exit_names.index(name)
+            elif sk == BoundaryKind.OBSTACLE:
+                obstacles.append(f"{p.name}/{m.obstacle_names[so]}")
+                so = len(obstacles) - 1
+            seg.append(s)
+            kind.append(sk)
+            owner.append(so)
+    seg_a = np.array(seg, np.int64).reshape(-1, 2)
+    shift = _piece_shifts(pts, to_surface, canon, starts, len(pieces))
+    glued = GluedMesh(points=pts, triangles=tri, segments=seg_a,
+                      segment_kind=np.array(kind, np.int8), segment_owner=np.array(owner),
+                      exit_names=tuple(exit_names), obstacle_names=tuple(obstacles),
+                      canon=canon, piece=surface.piece, piece_shift=shift)
+    hseg_a = np.array(hseg, np.int64).reshape(-1, 2)
+    open_mesh = TriMesh(points=pts, triangles=tri,
+                        segments=np.concatenate([seg_a, hseg_a]),
+                        segment_kind=np.concatenate([np.array(kind, np.int8),
+                                                     np.full(len(hseg_a), BoundaryKind.EXIT,
+                                                             np.int8)]),
+                        segment_owner=np.concatenate([np.array(owner, np.int64),
+                                                      np.array(howner, np.int64)]),
+                        exit_names=tuple(exit_names + hinge_names),
+                        obstacle_names=tuple(obstacles))
+    # the mesh for steering: the stair edges are boundary edges of no kind (neither a wall
+    # nor an exit: no wall correction, no exit direction, no door jamb there)
+    steer = TriMesh(points=pts, triangles=tri, segments=open_mesh.segments,
+                    segment_kind=np.concatenate([np.array(kind, np.int8),
+                                                 np.full(len(hseg_a), BoundaryKind.INTERIOR,
+                                                         np.int8)]),
+                    segment_owner=open_mesh.segment_owner, exit_names=tuple(exit_names),
+                    obstacle_names=tuple(obstacles))
+    if len(glued.boundary_edges) != len(open_mesh.boundary_edges) - len(hseg_a):
+        raise MeshError("the two sides of a stair edge of the atlas did not glue")
+    rows = []
+    for h, label in enumerate(hinge_names):
+        k = hinge_piece[h]
+        e = open_mesh.exit_edges(len(exit_names) + h)
+        v = open_mesh.edges[e].ravel()
+        across = glued.edge_triangles[glued.find_edges(open_mesh.edges[e]), :]
+        other = np.unique(surface.piece[across.ravel()])
+        other = other[other != k]
+        if len(other) != 1:
+            raise MeshError(f"stair edge {label!r} joins {len(other)} pieces, not one")
+        b = int(other[0])
+        rows.append((len(exit_names) + h, k, b, *shift[b, k]))
+        if not len(v):
+            raise MeshError(f"stair edge {label!r} has no edges")
+    hinges = np.array(rows, float).reshape(-1, 5)
+    atlas = Atlas(surface=surface, open=open_mesh, glued=glued, steer=steer, offset=offset,
+                  to_surface=to_surface, hinges=hinges)
+    surface._cache["atlas"] = atlas
+    glued._cache["atlas"] = atlas
+    return atlas
+
+
+def _offsets(pieces) -> np.ndarray:
+    """(p, 2) [m] each piece's place in the atlas: its own chart where that overlaps no
+    piece placed before it (a building without stacked parts keeps its plan), else to the
+    right of everything placed, :data:`ATLAS_GAP` apart."""
+    import shapely
+    import shapely.affinity
+
+    offset = np.zeros((len(pieces), 2))
+    placed = None
+    right = -np.inf
+    for k, p in enumerate(pieces):
+        region = shapely.union_all(shapely.polygons(p.mesh.points[p.mesh.triangles]))
+        lo, hi = p.mesh.points.min(axis=0), p.mesh.points.max(axis=0)
+        if placed is not None and placed.intersection(region).area > 1e-9 * region.area:
+            offset[k] = (right + ATLAS_GAP - lo[0], 0.0)
+            region = shapely.affinity.translate(region, *offset[k])
+        right = max(right, hi[0] + offset[k, 0])
+        placed = region if placed is None else shapely.union(placed, region)
+    return offset
+
+
+def _piece_shifts(pts, to_surface, canon, starts, n_pieces) -> np.ndarray:
+    """(p, p, 2) [m]: the translation from piece b's frame to piece a's, from the vertices
+    the two share (adjacent pieces) and composed along the fewest stair edges (others)."""
+    piece_of = np.repeat(np.arange(n_pieces), np.diff(starts))
+    direct: dict[tuple[int, int], np.ndarray] = {}
+    dup = np.flatnonzero(canon != np.arange(len(canon)))
+    for v in dup:
+        a, b = int(piece_of[canon[v]]), int(piece_of[v])
+        d = pts[canon[v]] - pts[v]  # b's point + d = a's point
+        key = (a, b)
+        if key in direct:
+            if not np.allclose(direct[key], d, atol=1e-6):
+                raise MeshError("two pieces meet along two stair edges that are not one "
+                                "translation apart (a stair from a level back to itself?)")
+            continue
+        direct[key] = d
+        direct[(b, a)] = -d
+    shift = np.zeros((n_pieces, n_pieces, 2))
+    nbrs: dict[int, list[int]] = {k: [] for k in range(n_pieces)}
+    for a, b in direct:
+        nbrs[a].append(b)
+    for a in range(n_pieces):  # breadth first from each piece
+        seen = {a}
+        queue = deque([a])
+        while queue:
+            c = queue.popleft()
+            for b in nbrs[c]:
+                if b not in seen:
+                    seen.add(b)
+                    # b's point + direct[(c, b)] is in c's frame; + shift[a, c] in a's
+                    shift[a, b] = shift[a, c] + direct[(c, b)]
+                    queue.append(b)
+    return shift

@@ -1,0 +1,143 @@
+"""Pairs across a building's stair edges (:mod:`pedmesh.models.sfm.building`).
+
+In the atlas the two sides of a stair edge lie apart: a pedestrian at ``x_j`` on one side
+is at ``x_j - s`` as seen from the other, with ``s`` the edge's shift. The pairs closer than
+a cut-off across an edge are listed once per step (:func:`hinge_pairs`, from a cell list of
+the positions) with the shift of each, and their forces and kernel densities are those of
+:func:`pedmesh.models.sfm.kernels.pair_force` at the distance across the edge
+(:func:`hinge_accel`, :func:`hinge_density`). A room has no such pairs, and nothing here
+runs for it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from .forces import pair_force
+
+__all__ = ["hinge_pairs", "hinge_accel", "hinge_density"]
+
+
+@nb.njit(cache=True)
+def _seg_dist2(px, py, ax, ay, bx, by):
+    dx, dy = bx - ax, by - ay
+    L2 = dx * dx + dy * dy
+    s = ((px - ax) * dx + (py - ay) * dy) / L2 if L2 > 0 else 0.0
+    s = min(max(s, 0.0), 1.0)
+    qx, qy = ax + s * dx - px, ay + s * dy - py
+    return qx * qx + qy * qy
+
+
+@nb.njit(cache=True)
+def hinge_pairs(x, n, tri, piece, hseg, hfrom, hto, hshift, rc, cell_start, cell_order,
+                cx0, cy0, cinv, cnx, cny, hi, hj, hs):
+    """The pairs (i, j) closer than ``rc`` [m] across a stair edge, with i on the edge's
+    side ``hfrom[h]`` and j on ``hto[h]`` (each edge listed from one side only, so every
+    pair once), into ``hi``, ``hj`` and their shifts ``hs`` (k, 2) [m] (x_i + hs is i as
+    seen from j's side). ``hseg`` (h, 4): each edge's end points on the ``hfrom`` side;
+    ``piece`` (m,): the piece of each triangle, ``tri`` the pedestrians' triangles; the
+    cell list (``cell_start``, ``cell_order`` on a grid at ``cx0``, ``cy0`` with cells of
+    1/``cinv`` [m]) must hold the positions ``x``. Returns the number of pairs, -1 if the
+    arrays are too small."""
+    rc2 = rc * rc
+    reach = int(rc * cinv) + 1
+    cap = hi.shape[0]
+    m = 0
+    for i in range(n):
+        pi_ = piece[tri[i]]
+        for h in range(hseg.shape[0]):
+            if hfrom[h] != pi_:
+                continue
+            if _seg_dist2(x[i, 0], x[i, 1], hseg[h, 0], hseg[h, 1], hseg[h, 2],
+                          hseg[h, 3]) >= rc2:
+                continue
+            qx = x[i, 0] + hshift[h, 0]
+            qy = x[i, 1] + hshift[h, 1]
+            ci = int((qx - cx0) * cinv)
+            cj = int((qy - cy0) * cinv)
+            for ii in range(max(ci - reach, 0), min(ci + reach, cnx - 1) + 1):
+                for jj in range(max(cj - reach, 0), min(cj + reach, cny - 1) + 1):
+                    c = ii * cny + jj
+                    for a in range(cell_start[c], cell_start[c + 1]):
+                        j = cell_order[a]
+                        if piece[tri[j]] != hto[h]:
+                            continue
+                        dx = qx - x[j, 0]
+                        dy = qy - x[j, 1]
+                        if dx * dx + dy * dy < rc2:
+                            if m >= cap:
+                                return -1
+                            hi[m] = i
+                            hj[m] = j
+                            hs[m, 0] = hshift[h, 0]
+                            hs[m, 1] = hshift[h, 1]
+                            m += 1
+    return m
+
+
+@nb.njit(cache=True)
+def hinge_density(x, nh, hi, hj, hs, rc_d, R, rho):
+    """Add the Gaussian kernel weights of the pairs across stair edges to ``rho``."""
+    w0 = 1.0 / (math.pi * R * R)
+    invR2 = 1.0 / (R * R)
+    rd2 = rc_d * rc_d
+    for p in range(nh):
+        i, j = hi[p], hj[p]
+        dx = x[i, 0] + hs[p, 0] - x[j, 0]
+        dy = x[i, 1] + hs[p, 1] - x[j, 1]
+        d2 = dx * dx + dy * dy
+        if d2 < rd2:
+            w = w0 * math.exp(-d2 * invR2)
+            rho[i] += w
+            rho[j] += w
+
+
+@nb.njit(cache=True)
+def hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
+                with_density, rs, lam, e):
+    """Add the accelerations of the pairs across stair edges to ``F`` (and, with
+    ``with_density``, their kernel weights to ``rho``), as
+    :func:`~pedmesh.models.sfm.kernels.pair_accel_list` does for the other pairs (the same
+    force, the field of vision ``lam`` weighting the social repulsion)."""
+    invB = 1.0 / B
+    inv_m = 1.0 / m
+    rc_f2 = rc_f * rc_f
+    if with_density:
+        hinge_density(x, nh, hi, hj, hs, rc_d, R, rho)
+    for p in range(nh):
+        i, j = hi[p], hj[p]
+        dx = x[i, 0] + hs[p, 0] - x[j, 0]
+        dy = x[i, 1] + hs[p, 1] - x[j, 1]
+        d2 = dx * dx + dy * dy
+        if not (d2 < rc_f2 and d2 > 0.0):
+            continue
+        d = math.sqrt(d2)
+        rij = rad[i] + rad[j]
+        sij = rs[i] + rs[j]
+        if lam < 1.0:
+            fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], rij, 0.0,
+                                invB, k, kappa, sij)
+            fs = A * math.exp((sij - d) * invB) / d
+            ci = -(dx * e[i, 0] + dy * e[i, 1]) / d
+            cj = (dx * e[j, 0] + dy * e[j, 1]) / d
+            wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
+            wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
+            F[i, 0] += (fx + wi * fs * dx) * inv_m
+            F[i, 1] += (fy + wi * fs * dy) * inv_m
+            F[j, 0] -= (fx + wj * fs * dx) * inv_m
+            F[j, 1] -= (fy + wj * fs * dy) * inv_m
+        else:
+            fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], rij, A,
+                                invB, k, kappa, sij)
+            F[i, 0] += fx * inv_m
+            F[i, 1] += fy * inv_m
+            F[j, 0] -= fx * inv_m
+            F[j, 1] -= fy * inv_m
+
+
+def empty_pairs() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Empty hinge-pair arrays (a room's)."""
+    return np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros((1, 2))
