@@ -54,7 +54,29 @@ def plot_route(ax, mesh, phi, directions=None, room=None, every: int = 1):
 
 
 def plot_density(ax, mesh, rho, *, vmax=None, room=None, cmap="magma_r"):
-    """Cell density [ped/m^2] as a flat-shaded map."""
+    """Cell density [ped/m^2] as a flat-shaded map. A building's surface mesh is drawn as
+    its atlas (:mod:`pedmesh.mesh.atlas`): every level and stair flat, side by side, each
+    level named."""
+    from .mesh.surface import SurfaceMesh
+
+    if isinstance(mesh, SurfaceMesh):
+        from .mesh.atlas import build_atlas
+
+        atlas = build_atlas(mesh)
+        g = atlas.glued
+        tp = ax.tripcolor(g.points[:, 0], g.points[:, 1], g.triangles, facecolors=rho,
+                          vmin=0.0, vmax=vmax, cmap=cmap, shading="flat")
+        from matplotlib.collections import LineCollection
+
+        walls = g.points[g.edges[g.boundary_edges]]  # (k, 2, 2): the walls and exits
+        ax.add_collection(LineCollection(walls, lw=0.4, colors="0.3"))
+        for p, off in zip(mesh.pieces, atlas.offset):
+            if p.kind == "level":
+                top = p.mesh.points.max(axis=0) + off
+                mid = 0.5 * (p.mesh.points.min(axis=0) + p.mesh.points.max(axis=0)) + off
+                ax.text(mid[0], top[1] + 0.5, p.name, ha="center", va="bottom", fontsize=6)
+        ax.set_aspect("equal")
+        return tp
     tp = ax.tripcolor(mesh.points[:, 0], mesh.points[:, 1], mesh.triangles, facecolors=rho,
                       vmin=0.0, vmax=vmax, cmap=cmap, shading="flat")
     if room is not None:

@@ -29,6 +29,7 @@ Two meshes share the atlas's points and triangles:
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -279,22 +280,36 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
 
 def _offsets(pieces) -> np.ndarray:
     """(p, 2) [m] each piece's place in the atlas: its own chart where that overlaps no
-    piece placed before it (a building without stacked parts keeps its plan), else to the
-    right of everything placed, :data:`ATLAS_GAP` apart."""
+    piece placed before it (a building without stacked parts keeps its plan); the others
+    on shelves to the right of those, :data:`ATLAS_GAP` apart, in rows about as wide as
+    all of them are high (a compact picture: :func:`pedmesh.plotting.plot_density`)."""
     import shapely
     import shapely.affinity
 
     offset = np.zeros((len(pieces), 2))
+    regions = [shapely.union_all(shapely.polygons(p.mesh.points[p.mesh.triangles]))
+               for p in pieces]
     placed = None
-    right = -np.inf
-    for k, p in enumerate(pieces):
-        region = shapely.union_all(shapely.polygons(p.mesh.points[p.mesh.triangles]))
-        lo, hi = p.mesh.points.min(axis=0), p.mesh.points.max(axis=0)
+    moved = []
+    for k, region in enumerate(regions):
         if placed is not None and placed.intersection(region).area > 1e-9 * region.area:
-            offset[k] = (right + ATLAS_GAP - lo[0], 0.0)
-            region = shapely.affinity.translate(region, *offset[k])
-        right = max(right, hi[0] + offset[k, 0])
+            moved.append(k)
+            continue
         placed = region if placed is None else shapely.union(placed, region)
+    if not moved:
+        return offset
+    x0, _, x1, y1 = placed.bounds
+    lo = np.array([pieces[k].mesh.points.min(axis=0) for k in moved])
+    size = np.array([pieces[k].mesh.points.max(axis=0) for k in moved]) - lo + ATLAS_GAP
+    width = max(float(size[:, 0].max()), math.sqrt(float(np.sum(size[:, 0] * size[:, 1]))),
+                x1 - x0)
+    x, y, row = x1 + ATLAS_GAP, y1, 0.0
+    for k, l, sz in zip(moved, lo, size):
+        if x + sz[0] > x1 + ATLAS_GAP + width and row > 0:  # a new shelf below
+            x, y, row = x1 + ATLAS_GAP, y - row, 0.0
+        offset[k] = (x - l[0], y - sz[1] + ATLAS_GAP - l[1])
+        x += sz[0]
+        row = max(row, sz[1])
     return offset
 
 

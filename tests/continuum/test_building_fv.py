@@ -148,27 +148,3 @@ def test_models_without_surface_support_say_so():
 
     with pytest.raises(ParameterError, match="does not run on buildings"):
         get_model("mac1").build(b, s, {})
-
-
-def test_the_office_evacuates_under_eos(tmp_path):
-    """The shipped building through `pedmesh run`: everyone out, mass to round-off, its
-    density frames in 3-D."""
-    from pedmesh.run import run_model
-
-    b = load_room(ROOT / "geometries" / "office.json")
-    s = triangulate_building(b)
-    summary = run_model(b, s, "eos", out_dir=tmp_path / "eos", quiet=True)
-    assert summary["status"] == "finished"
-    assert summary["n_evacuated"] == pytest.approx(300.0, abs=1.0)
-    assert summary["mass_error_max"] < 1e-12
-    from pedmesh.io.vtk import read_vtu
-
-    frames = sorted((tmp_path / "eos" / "density").glob("*.vtu"))
-    pts, tri, point, cell = read_vtu(frames[len(frames) // 3])
-    assert np.array_equal(tri, s.triangles) and np.allclose(pts, s.points)
-    assert pts[:, 2].max() == pytest.approx(14.0)  # the fourth floor
-    # the velocity is 3-D and along the surface: normal to each triangle's normal
-    v = cell["velocity"]
-    assert v.shape == (s.n_triangles, 3) and np.abs(v).max() > 0.1
-    assert np.abs(np.sum(v * s.normals, axis=1)).max() < 1e-9
-    assert point["phi"].shape == (s.n_points,)

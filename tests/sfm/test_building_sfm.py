@@ -148,30 +148,3 @@ def test_stacked_floors_do_not_interact():
     both = walk(["ground", "first"])
     alone = walk(["first"])
     assert np.array_equal(both[1], alone[0])
-
-
-def test_the_office_evacuates_and_its_trajectories_name_the_level(tmp_path):
-    pytest.importorskip("pedpy")
-    import pedpy
-
-    from pedmesh.analysis import level_trajectories
-    from pedmesh.run import run_model
-
-    b = load_room(ROOT / "geometries" / "office.json")
-    s = triangulate_building(b)
-    summary = run_model(b, s, "sfm", out_dir=tmp_path / "sfm", quiet=True)
-    assert summary["status"] == "finished" and summary["n_evacuated"] == 300
-    rows = [ln.split() for ln in (tmp_path / "sfm" / "trajectories.txt").read_text()
-            .splitlines() if not ln.startswith("#")]
-    places = {r[5] for r in rows}
-    assert {"ground", "fourth", "west-3-4", "east-0-1"} <= places
-    z = np.array([float(r[4]) for r in rows])
-    assert z.min() == 0.0 and z.max() == pytest.approx(14.0)
-    # one level's rows for PedPy, with that level's walkable area
-    out = level_trajectories(tmp_path / "sfm" / "trajectories.sqlite", "second",
-                             tmp_path / "second.sqlite",
-                             walkable_wkt=b.level("second").room.walkable.wkt)
-    traj = pedpy.load_trajectory_from_jupedsim_sqlite(trajectory_file=out)
-    assert len(traj.data) == sum(r[5] == "second" for r in rows)
-    walk = pedpy.load_walkable_area_from_jupedsim_sqlite(trajectory_file=out)
-    assert walk.polygon.area == pytest.approx(b.level("second").room.walkable.area)

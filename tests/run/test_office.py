@@ -1,0 +1,80 @@
+"""The shipped building (geometries/office.json) through `pedmesh compare`: the social force
+model and eos evacuate it, eos's T90 within 10 % of the social force model's, the density
+frames in 3-D, the trajectories naming the level and carrying z, one level for PedPy."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pedmesh.cli import main
+from pedmesh.io import load_room
+from pedmesh.mesh.building import triangulate_building
+
+ROOT = Path(__file__).resolve().parents[2]
+OFFICE = ROOT / "geometries" / "office.json"
+
+
+@pytest.fixture(scope="module")
+def compared(tmp_path_factory):
+    out = tmp_path_factory.mktemp("office")
+    assert main(["compare", str(OFFICE), "--models", "sfm,eos", "--out", str(out), "-q"]) == 0
+    return out
+
+
+def test_eos_answers_like_the_social_force_model(compared):
+    rows = {r["label"]: r for r in csv.DictReader(open(compared / "comparison.csv"))}
+    sfm, eos = rows["sfm"], rows["eos"]
+    for r in (sfm, eos):
+        assert float(r["t_evac_100"]) > 0  # everyone out
+    assert abs(float(eos["t_evac_90"]) / float(sfm["t_evac_90"]) - 1.0) < 0.10
+    assert (compared / "density.png").stat().st_size > 10_000
+
+
+def test_the_density_frames_are_in_3d(compared):
+    from pedmesh.io.vtk import read_vtu
+
+    s = triangulate_building(load_room(OFFICE))
+    frames = sorted((compared / "eos" / "density").glob("*.vtu"))
+    pts, tri, point, cell = read_vtu(frames[len(frames) // 3])
+    assert np.array_equal(tri, s.triangles) and np.allclose(pts, s.points)
+    assert pts[:, 2].max() == pytest.approx(14.0)  # the fourth floor
+    # the velocity is 3-D and along the surface: normal to each triangle's normal
+    v = cell["velocity"]
+    assert v.shape == (s.n_triangles, 3) and np.abs(v).max() > 0.1
+    assert np.abs(np.sum(v * s.normals, axis=1)).max() < 1e-9
+    assert point["phi"].shape == (s.n_points,)
+    import json
+
+    summary = json.loads((compared / "eos" / "summary.json").read_text())
+    assert summary["mass_error_max"] < 1e-12
+
+
+def test_the_trajectories_name_the_level(compared, tmp_path):
+    pedpy = pytest.importorskip("pedpy")
+    from pedmesh.analysis import level_trajectories
+
+    b = load_room(OFFICE)
+    d = compared / "sfm"
+    rows = [ln.split() for ln in (d / "trajectories.txt").read_text().splitlines()
+            if not ln.startswith("#")]
+    places = {r[5] for r in rows}
+    assert {"ground", "fourth", "west-3-4", "east-0-1"} <= places
+    z = np.array([float(r[4]) for r in rows])
+    assert z.min() == 0.0 and z.max() == pytest.approx(14.0)
+    # one level's rows for PedPy, with that level's walkable area
+    out = level_trajectories(d / "trajectories.sqlite", "second", tmp_path / "second.sqlite",
+                             walkable_wkt=b.level("second").room.walkable.wkt)
+    traj = pedpy.load_trajectory_from_jupedsim_sqlite(trajectory_file=out)
+    assert len(traj.data) == sum(r[5] == "second" for r in rows)
+    walk = pedpy.load_walkable_area_from_jupedsim_sqlite(trajectory_file=out)
+    assert walk.polygon.area == pytest.approx(b.level("second").room.walkable.area)
+    # the pedestrians' frames are in 3-D too
+    from pedmesh.io.vtk import read_vtp
+
+    frames = sorted((d / "pedestrians").glob("*.vtp"))
+    pts, data = read_vtp(frames[len(frames) // 4])
+    assert pts.shape[1] == 3 and pts[:, 2].max() > 3.0 and "piece" in data
