@@ -85,6 +85,34 @@ def plot_density(ax, mesh, rho, *, vmax=None, room=None, cmap="magma_r"):
     return tp
 
 
+def plot_building_density(ax, surface, rho, *, vmax=None, cmap="magma_r", walls=True):
+    """A building's cell density [ped/m^2] on its surface in 3-D (``ax`` a matplotlib 3-D
+    axes): every level at its height, the stairs sloped, the walls as lines."""
+    from matplotlib import cm, colors
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    norm = colors.Normalize(0.0, vmax if vmax is not None else float(np.max(rho)) or 1.0)
+    import matplotlib
+
+    fc = matplotlib.colormaps[cmap](norm(np.asarray(rho, float)))
+    ax.add_collection3d(Poly3DCollection(surface.points[surface.triangles], facecolors=fc,
+                                         edgecolors="none", linewidths=0))
+    if walls:
+        seg = surface.points[surface.segments]
+        ax.add_collection3d(Line3DCollection(seg, colors="0.25", linewidths=0.4))
+    lo, hi = surface.points.min(axis=0), surface.points.max(axis=0)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(hi - lo + 1e-9)
+    ax.set_xlabel("x [m]", fontsize=7)
+    ax.set_ylabel("y [m]", fontsize=7)
+    ax.set_zlabel("z [m]", fontsize=7)
+    sm = cm.ScalarMappable(norm=norm, cmap=cmap)
+    sm.set_array([])
+    return sm
+
+
 def plot_crowd(ax, room, positions, *, size=2.0):
     plot_room(ax, room)
     if len(positions):
