@@ -619,11 +619,227 @@ def test3(args, models):
     return _stair_test(args, models, up=False)
 
 
-TESTS = {1: test1, 2: test2, 3: test3, 4: test4, 5: test5, 6: test6, 7: test7, 9: test9,
-         10: test10, 11: test11, 12: test12, 15: test15}
+def _crossings(times, n: int) -> tuple[float, float, float]:
+    """Flow [ped/s] over a section from the times [s] its first 10 % and 90 % of ``n``
+    people had crossed it: 0.8 n / (t90 - t10); and those two times."""
+    t10, t90 = times(0.1 * n), times(0.9 * n)
+    return 0.8 * n / (t90 - t10) if t90 > t10 else math.inf, t10, t90
+
+
+def test13(args, models):
+    """Test 13: 150 people leave a 10 x 8 m room through a 12 m long, 2 m wide corridor
+    that ends at the foot of a stair going up (2 m wide, 32 degrees, rise 3.5 m over a run
+    of 5.6 m) to a 4 m landing with the exit. A jam must form at the stair's foot: the flow
+    over the stair below the flow into the corridor, the density on the corridor's last
+    2 m above that in its middle."""
+    from pedmesh import Room
+    from pedmesh.geometry import Level, Stair
+
+    n, run_, rise = 150, 5.6, 3.5
+    xs = 22.0 + run_
+    ground = Room([(0, 0), (10, 0), (10, 3), (22, 3), (22, 5), (10, 5), (10, 8), (0, 8)],
+                  start_areas=[{"name": "room", "polygon": rect(0.5, 0.5, 9.5, 7.5),
+                                "count": n}], name="ground")
+    landing = Room(rect(xs, 3, xs + 4, 5), exits=[{"name": "exit", "polyline": [(xs + 4, 3),
+                                                                                (xs + 4, 5)]}],
+                   name="landing")
+    stair = Stair("stair", rect(22, 3, xs, 5), {"level": "ground", "edge": [(22, 3), (22, 5)]},
+                  {"level": "landing", "edge": [(xs, 3), (xs, 5)]})
+    b = Building([Level("ground", 0.0, ground), Level("landing", rise, landing)], [stair],
+                 name="rimea-13-stair-jam")
+    path = save(b)
+    foot, mid = (20.0, 3.0, 22.0, 5.0), (15.0, 3.0, 17.0, 5.0)
+
+    def inside(box, x, y):
+        return (x >= box[0]) & (x < box[2]) & (y >= box[1]) & (y < box[3])
+
+    rows = []
+    for model in models:
+        d = args.out / "test13" / model
+        s = run(path, model, d, args.preset, t_end=1000)
+        if model == "sfm":
+            tr, fps = places(d)
+            t_in, t_st = [], []
+            for r in tr.values():
+                on = np.array([p == "ground" for p in r["place"]])
+                k_in = np.flatnonzero(on & (r["x"] >= 10.0))
+                k_st = [j for j, p in enumerate(r["place"]) if p == "stair"]
+                t_in.append(r["t"][k_in[0]] if len(k_in) else math.inf)
+                t_st.append(r["t"][k_st[0]] if k_st else math.inf)
+            t_in, t_st = np.sort(t_in), np.sort(t_st)
+            q_in, _, _ = _crossings(lambda m: t_in[int(math.ceil(m)) - 1], n)
+            q_st, ta, tb = _crossings(lambda m: t_st[int(math.ceil(m)) - 1], n)
+            counts = {"foot": {}, "mid": {}}
+            for r in tr.values():
+                sel = np.array([p == "ground" for p in r["place"]]) & (r["t"] >= ta) & \
+                    (r["t"] <= tb)
+                for key, box in (("foot", foot), ("mid", mid)):
+                    for t in r["t"][sel & inside(box, r["x"], r["y"])]:
+                        counts[key][t] = counts[key].get(t, 0) + 1
+            n_frames = int(round((tb - ta) * fps)) + 1
+            rho = {key: sum(c.values()) / n_frames / 4.0 for key, c in counts.items()}
+            how = ("flows from the first frame of each person past x = 10 m (corridor) and "
+                   "on the stair (trajectories.txt)")
+        else:
+            ts, m_room, m_ground, frames = [], [], [], []
+            for t, c, a, r in surface_frames(d):
+                g = c[:, 2] < 1e-6  # the ground level
+                ts.append(t)
+                m_room.append(float(np.sum((r * a)[g & (c[:, 0] < 10.0)])))
+                m_ground.append(float(np.sum((r * a)[g])))
+                frames.append((t, c, a, r))
+            ts = np.array(ts)
+            n0 = m_ground[0]
+
+            def when(mass):  # the time the mass left of a section falls to n0 - m
+                m = n0 - np.array(mass)
+                return lambda q: float(np.interp(q, np.maximum.accumulate(m), ts))
+            q_in, _, _ = _crossings(when(m_room), n0)
+            q_st, ta, tb = _crossings(when(m_ground), n0)
+            rho = {"foot": [], "mid": []}
+            for t, c, a, r in frames:
+                if ta <= t <= tb:
+                    g = c[:, 2] < 1e-6
+                    for key, box in (("foot", foot), ("mid", mid)):
+                        sel = g & inside(box, c[:, 0], c[:, 1])
+                        rho[key].append(float(np.sum((r * a)[sel]) / np.sum(a[sel])))
+            rho = {key: float(np.mean(v)) for key, v in rho.items()}
+            how = ("flows from the mass left in the room (x < 10 m) and on the ground level "
+                   "in the density frames (every 1 s)")
+        ok = q_st < q_in and rho["foot"] > rho["mid"]
+        rows.append(row(13, model, "jam at the stair's foot: flow over the stair below the "
+                                   "flow into the corridor, density on the corridor's last "
+                                   "2 m above its middle's",
+                        f"flow into the corridor {q_in:.2f} ped/s, over the stair {q_st:.2f} "
+                        f"ped/s; density at the foot {rho['foot']:.2f} /m^2, mid-corridor "
+                        f"{rho['mid']:.2f} /m^2; {s['n_evacuated']:.0f} of {n} out, T100 "
+                        f"{s['t_evac_100'] or math.nan:.0f} s", ok,
+                        "room 10 x 8 m, corridor 12 x 2 m, stair up 2 m wide (32 degrees, "
+                        f"rise {rise:g} m, run {run_:g} m), landing 4 x 2 m with the exit; "
+                        f"{how}; flow = 0.8 x {n} / (t90 - t10) of the crossing times; "
+                        "densities in x 20-22 m (foot) and 15-17 m (mid) over the stair's "
+                        "t10-t90"))
+    return rows
+
+
+def _route_building(wing: float) -> Building:
+    """Test 14: an upper level (z 3.5 m) of a west and an east wing 6 m wide and ``wing`` m
+    long joined by a 2 m corridor along their north ends, 20 people in the west wing and the
+    exit at the east wing's far end; and the way below: a 2 m stair (32 degrees, rise
+    3.5 m, run 5.6 m) down from the west wing to a 6.8 x 4 m hall of the lower level, and
+    one up from it to the east wing."""
+    from pedmesh import Room
+    from pedmesh.geometry import Level, Stair
+
+    rise, run_ = 3.5, 5.6
+    upper = Room([(0, 0), (6, 0), (6, wing), (24, wing), (24, 0), (30, 0), (30, wing + 2),
+                  (0, wing + 2)],
+                 exits=[{"name": "exit", "polyline": [(30, 1), (30, 3)]}],
+                 start_areas=[{"name": "west-wing", "polygon": rect(0.5, 0.5, 5.5, 3.5),
+                               "count": 20}], name="upper")
+    lower = Room(rect(6 + run_, 0, 24 - run_, 4), name="lower")
+    down = Stair("down", rect(6, 1, 6 + run_, 3),
+                 {"level": "lower", "edge": [(6 + run_, 1), (6 + run_, 3)]},
+                 {"level": "upper", "edge": [(6, 1), (6, 3)]})
+    up = Stair("up", rect(24 - run_, 1, 24, 3),
+               {"level": "lower", "edge": [(24 - run_, 1), (24 - run_, 3)]},
+               {"level": "upper", "edge": [(24, 1), (24, 3)]})
+    return Building([Level("lower", 0.0, lower), Level("upper", rise, upper)], [down, up],
+                    name=f"rimea-14-route-choice-{wing:g}m")
+
+
+def test14(args, models):
+    """Test 14: route choice between a way on the level and a way down a stair and up
+    another (:func:`_route_building`). From the crowd's middle the way below is 29 m, 13 m
+    of it on the stairs: 40 m of walking at the stairs' speeds (0.6 down, 0.5 up). The way on
+    the level is (a) 33 m with 8 m long wings: longer, but quicker; (b) 55 m with 20 m
+    wings: longer and slower. Reported: which way each model takes."""
+    rows = []
+    for model in models:
+        parts = []
+        for wing in (8.0, 20.0):
+            b = _route_building(wing)
+            n = b.levels[1].room.start_areas[0].count
+            rise = b.levels[1].z
+            d = args.out / "test14" / f"{model}-{wing:g}m"
+            s = run(save(b), model, d, args.preset, t_end=600)
+            if model == "sfm":
+                tr, _ = places(d)
+                stairs = sum(1 for r in tr.values() if "down" in r["place"])
+                level = sum(1 for r in tr.values()
+                            if "down" not in r["place"] and np.any(r["y"] > wing))
+                parts.append(f"{stairs} of {n} by the stairs, {level} on the level "
+                             f"({s['stair_edge_crossings']} stair-edge crossings, T100 "
+                             f"{s['t_evac_100'] or math.nan:.1f} s)")
+            else:
+                off, north = [], []
+                for t, c, a, r in surface_frames(d):
+                    m = r * a
+                    off.append(float(np.sum(m[c[:, 2] < rise - 1e-6])))  # stairs, hall
+                    north.append(float(np.sum(m[(c[:, 2] > rise - 1e-6)
+                                                & (c[:, 1] > wing)])))
+                parts.append(f"peak {max(off):.1f} of {n} on the stairs and the lower hall, "
+                             f"{max(north):.1f} in the north corridor (T100 "
+                             f"{s['t_evac_100'] or math.nan:.1f} s)")
+        how = ("the place column of trajectories.txt (by the stairs: ever on 'down'; on "
+               "the level: ever in the north corridor)" if model == "sfm" else
+               "the peak mass below the upper level and in its north corridor, from the "
+               "density frames (every 1 s)")
+        rows.append(row(14, model, "route choice between the level and the stairs "
+                                   "(reported)",
+                        f"(a) level quicker: {parts[0]}; (b) stairs quicker: {parts[1]}", True,
+                        "upper level: two wings 6 m wide, (a) 8 m, (b) 20 m long, joined by "
+                        "a 2 m corridor at their north ends; below, 2 m stairs (32 degrees, "
+                        "rise 3.5 m) down to and up from a 6.8 x 4 m hall; 20 people; way "
+                        "below 29 m (40 m at stair speeds), on the level (a) 33 m, (b) 55 m; "
+                        + how))
+    return rows
+
+
+def test8(args, models):
+    """Test 8: a parameter study on a three-storey building: the first three storeys of
+    geometries/office.json (60 people on each, two stairwells of 32-degree flights, a door
+    on each side of the ground floor), a small ensemble (2 seeds per value) over the free
+    speed U_f = 1.0, 1.34, 1.6 m/s. Reported: T90 per value (mean, min-max); pass = every
+    member finished and the mean T90 falls as U_f rises."""
+    from pedmesh.ensembles import ensemble
+    from pedmesh.io import load_room
+
+    office = load_room(Path(__file__).resolve().parents[2] / "geometries" / "office.json")
+    levels = office.levels[:3]
+    names = {lv.name for lv in levels}
+    stairs = [s for s in office.stairs if {s.bottom.level, s.top.level} <= names]
+    b = Building(levels, stairs, name="rimea-08-three-storeys",
+                 description="The first three storeys of geometries/office.json: 30 x 12 m, "
+                             "storeys 3.5 m high, two stairwells of 32-degree flights, a 1.2 m "
+                             "door on each side of the ground floor, 60 people per floor.")
+    path = save(b)
+    values = [1.0, 1.34, 1.6]
+    frame = ensemble(path, "sfm", members=2, out=args.out / "test8" / "sfm",
+                     sweep={"U_f": values}, workers=2, preset=args.preset, t_end=1000,
+                     quiet=True)
+    parts, means = [], []
+    for v in values:
+        t90 = frame.loc[np.isclose(frame["U_f"].astype(float), v), "t_evac_90"].astype(float)
+        means.append(float(t90.mean()))
+        parts.append(f"U_f {v:g}: {t90.mean():.1f} s ({t90.min():.1f}-{t90.max():.1f})")
+    done = bool((frame["status"] == "finished").all())
+    ok = done and all(a > b_ for a, b_ in zip(means, means[1:]))
+    return [row(8, "sfm", "T90 per free speed U_f [m/s] (mean of 2 seeds, min-max); pass = "
+                          "all finished and T90 falling with U_f",
+                "; ".join(parts) + f"; {len(frame)} members, "
+                                   f"{int((frame['status'] == 'finished').sum())} finished",
+                ok, f"{sum(lv.room.start_areas[0].count for lv in levels)} people on 3 storeys "
+                    "of the office; `pedmesh.ensembles.ensemble` (sfm, 2 members per value, "
+                    "2 workers)")]
+
+
+TESTS = {1: test1, 2: test2, 3: test3, 4: test4, 5: test5, 6: test6, 7: test7, 8: test8,
+         9: test9, 10: test10, 11: test11, 12: test12, 13: test13, 14: test14, 15: test15}
 #: the continuum models each test runs besides the social force model (of --models)
 CONTINUUM = {1: ("eos", "rdue"), 2: ("eos", "rdue"), 3: ("eos", "rdue"), 4: ("eos", "rdue"),
-             9: ("eos", "rdue"), 11: ("eos", "rdue"), 15: ("eos", "rdue")}
+             9: ("eos", "rdue"), 11: ("eos", "rdue"), 13: ("eos",),
+             14: ("eos",), 15: ("eos", "rdue")}
 
 
 def report(rows: list[dict], presets: list[str], seconds: float) -> str:
