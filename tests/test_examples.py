@@ -37,9 +37,10 @@ SMALL_RUNS: dict[str, tuple[list[str], list[str]]] = {
          "--results", "{tmp}"],
         ["door_width.md", "door_width_bands.png", "room-1.2m.json", "room-2.4m.json"]),
     "rimea/rimea.py": (
-        ["--tests", "1,6", "--models", "sfm,rdue", "--out", "{tmp}/runs", "--rooms",
+        ["--tests", "1,2,6", "--models", "sfm,rdue", "--out", "{tmp}/runs", "--rooms",
          "{tmp}/rooms", "--report", "{tmp}/RIMEA.md"],
-        ["RIMEA.md", "runs/rimea.json", "rooms/rimea-06-corner.json"]),
+        ["RIMEA.md", "runs/rimea.json", "rooms/rimea-06-corner.json",
+         "rooms/rimea-02-stair-up.json"]),
     "venue/make_venue.py": (
         ["--out", "{tmp}"],
         ["venue.json", "venue_10k.json"]),

@@ -1,27 +1,33 @@
 """The RiMEA test suite (Guideline for Microscopic Evacuation Analysis, version 4.1.1) run
 with pedmesh, and its report ``examples/rimea/RIMEA.md``.
 
-Each test builds its room (written to ``examples/rimea/rooms/``), runs the social force
-model (and, for tests 1, 9 and 11, the continuum models eos and rdue) through the same
-``run_model`` a user's ``pedmesh run`` goes through, measures what the guideline asks from
-the run's own output files (summary.json, exits.csv, trajectories.txt), and records the
+Each test builds its room or building (written to ``examples/rimea/rooms/``), runs the
+social force model (and, for tests 1-4, 9, 11 and 15, the continuum models eos and rdue;
+for tests 13 and 14 eos) through the same ``run_model`` a user's ``pedmesh run`` goes
+through (test 8 through ``pedmesh.ensembles.ensemble``, as ``pedmesh ensemble`` does),
+measures what the guideline asks from the run's own output files (summary.json, exits.csv,
+trajectories.txt with its level or stair per row, the density frames), and records the
 criterion, the measured value and pass or fail. The rooms follow the guideline's sketches
 where it gives sizes; where it leaves them open the choice is stated in the report.
 
-    python examples/rimea/rimea.py [--presets paper,weidmann] [--tests 1,4,5,6,7,9,10,11,12,15]
+    python examples/rimea/rimea.py [--presets paper,weidmann]
+                                   [--tests 1,2,3,4,5,6,7,8,9,10,11,12,13,14,15]
                                    [--models sfm,eos,rdue] [--out runs/rimea]
                                    [--rooms examples/rimea/rooms] [--report FILE]
 
 A small run (a few seconds once numba has compiled; ``tests/test_examples.py``) keeps
 everything out of the repository::
 
-    python examples/rimea/rimea.py --tests 1,6 --models sfm,rdue --out DIR/runs
+    python examples/rimea/rimea.py --tests 1,2,6 --models sfm,rdue --out DIR/runs
                                    --rooms DIR/rooms --report DIR/RIMEA.md
 
 The exit status is 1 if any test fails.
 
-Not covered (pedmesh has no stairs or floors): tests 2 and 3 (stairs), 8 (a three-storey
-building), 13 (jam at stairs), 14 (route choice between floors).
+Tests 2, 3, 8, 13 and 14 run on buildings (levels and stairs, docs/buildings.md): the
+stairs' speeds are their ``speed_up`` / ``speed_down`` (0.5 and 0.6) times the level's
+along the slope, and the criteria of tests 2 and 3 (the time over 10 m of slope within
++-13 %, test 1's tolerance, of the slope at that speed) are ours: the guideline's own
+wording was not at hand.
 """
 
 from __future__ import annotations
@@ -32,10 +38,14 @@ import json
 import math
 import sys
 import time
+from functools import partial
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
+from pedmesh.geometry import Building
 from pedmesh.mesh import triangulate
+from pedmesh.mesh.building import triangulate_building
 
 HERE = Path(__file__).resolve().parent
 ROOMS = HERE / "rooms"
@@ -52,12 +62,16 @@ def save(room) -> Path:
 def run(room_path: Path, model: str, out: Path, preset: str | None, t_end: float = 1500.0,
         seed: int | None = None, max_area: float = 1.0) -> dict:
     """One run (the room file's mesh at ``max_area`` [m^2], graded at features as by
-    default); returns its summary."""
+    default; a building's surface mesh for a file with levels and stairs); returns its
+    summary."""
     from pedmesh.io import load_room
     from pedmesh.run import run_model
 
     room = load_room(room_path)
-    mesh = triangulate(room, max_area=max_area)
+    if isinstance(room, Building):  # levels and stairs: one surface mesh
+        mesh = triangulate_building(room, max_area=max_area)
+    else:
+        mesh = triangulate(room, max_area=max_area)
     opts = {"seed": seed} if seed is not None and model == "sfm" else {}
     return run_model(room, mesh, model, t_end=t_end, out_dir=out, quiet=True,
                      geometry=str(room_path), preset=preset, model_options=opts,
@@ -84,6 +98,45 @@ def trajectories(out: Path) -> tuple[dict[int, np.ndarray], float]:
         r = r[np.argsort(r[:, 1], kind="stable")]
         out_[i] = np.column_stack([r[:, 1] / fps, r[:, 2], r[:, 3]])
     return out_, fps
+
+
+def places(out: Path) -> tuple[dict[int, dict], float]:
+    """A building run's trajectories.txt (``id frame x y z place``): {id: {"t": [s],
+    "x", "y", "z": [m] arrays, "place": the level or stair of each row}} and the frame
+    rate [1/s]."""
+    fps = 10.0
+    rows: dict[int, list] = {}
+    with open(out / "trajectories.txt") as f:
+        for line in f:
+            if line.startswith("#"):
+                if "framerate" in line.lower():
+                    fps = float(line.split(":")[-1].split()[0])
+                continue
+            v = line.split()
+            if len(v) >= 6:
+                rows.setdefault(int(v[0]), []).append((int(v[1]), float(v[2]), float(v[3]),
+                                                       float(v[4]), v[5]))
+    out_ = {}
+    for i, r in rows.items():
+        r.sort(key=lambda q: q[0])
+        out_[i] = {"t": np.array([q[0] for q in r]) / fps,
+                   "x": np.array([q[1] for q in r]), "y": np.array([q[2] for q in r]),
+                   "z": np.array([q[3] for q in r]), "place": [q[4] for q in r]}
+    return out_, fps
+
+
+def surface_frames(out: Path):
+    """A continuum run's density frames on a building (3-D cells: plan x, y and height z):
+    yields t [s], the cells' centres (n, 3) [m], true areas [m^2] and density [ped/m^2]."""
+    import pyvista as pv
+    from pedmesh.io import read_pvd_index
+
+    for t, f in read_pvd_index(out / "density.pvd"):
+        g = pv.read(f)
+        c = np.asarray(g.cell_centers().points)
+        a = np.asarray(g.compute_cell_sizes(length=False, area=True, volume=False)
+                       .cell_data["Area"])
+        yield t, c, a, np.asarray(g.cell_data["rho"])
 
 
 def exits_csv(out: Path) -> list[tuple[int, str, float]]:
@@ -474,9 +527,336 @@ def test15(args, models):
     return rows
 
 
-TESTS = {1: test1, 4: test4, 5: test5, 6: test6, 7: test7, 9: test9, 10: test10, 11: test11,
-         12: test12, 15: test15}
-CONTINUUM = {1, 4, 9, 11, 15}
+# ------------------------------------------------------------------ tests on buildings
+#: tests 2 and 3: a 30-degree flight 2 m wide whose slope is 10 m (run 8.66 m, rise 5 m),
+#: between two 6 m long levels of the same width
+STAIR_RUN, STAIR_RISE, STAIR_LEVEL = 8.66, 5.0, 6.0
+
+
+def _stair_building(up: bool, continuum: bool):
+    """Tests 2 and 3: level 'lower' (x 0-6 m), the stair (x 6-14.66 m, rising to +x) and
+    level 'upper' (x 14.66-20.66 m), all 2 m wide; the person starts 1 m from the far end
+    of one level and leaves by the far end of the other (up: lower to upper). For the
+    continuum the person is one person's worth of density over 1 x 2 m."""
+    from pedmesh import Room
+    from pedmesh.geometry import Level, Stair
+
+    x1 = STAIR_LEVEL
+    x2 = x1 + STAIR_RUN
+    x3 = x2 + STAIR_LEVEL
+    y0, y1 = (0.0, 2.0) if continuum else (0.5, 1.5)
+    where = rect(0.5, y0, 1.5, y1) if up else rect(x3 - 1.5, y0, x3 - 0.5, y1)
+    start = [{"name": "person", "polygon": where, "count": 1}]
+    low_exit = [{"name": "lower-end", "polyline": [(0, 2), (0, 0)]}]
+    high_exit = [{"name": "upper-end", "polyline": [(x3, 0), (x3, 2)]}]
+    lower = Room(rect(0, 0, x1, 2), exits=[] if up else low_exit,
+                 start_areas=start if up else [], name="lower")
+    upper = Room(rect(x2, 0, x3, 2), exits=high_exit if up else [],
+                 start_areas=[] if up else start, name="upper")
+    stair = Stair("stair", rect(x1, 0, x2, 2), {"level": "lower", "edge": [(x1, 0), (x1, 2)]},
+                  {"level": "upper", "edge": [(x2, 0), (x2, 2)]})
+    name = "rimea-02-stair-up" if up else "rimea-03-stair-down"
+    return Building([Level("lower", 0.0, lower), Level("upper", STAIR_RISE, upper)], [stair],
+                    name=name + ("-continuum" if continuum else ""))
+
+
+def _stair_test(args, models, up: bool):
+    from pedmesh import Room
+
+    k = 2 if up else 3
+    way = "up" if up else "down"
+    slope = math.hypot(STAIR_RUN, STAIR_RISE)
+    angle = math.degrees(math.atan2(STAIR_RISE, STAIR_RUN))
+    rows = []
+    for model in models:
+        b = _stair_building(up, continuum=model != "sfm")
+        factor = b.stairs[0].speed_up if up else b.stairs[0].speed_down
+        d = args.out / f"test{k}" / model
+        path = save(b)
+        s = run(path, model, d, args.preset, t_end=120)
+        U = float(s["parameters"]["U_f"])  # the free speed the run used
+        want = slope / (factor * U)
+        if model == "sfm":
+            tr, fps = places(d)
+            on = [j for j, p in enumerate(tr[0]["place"]) if p == "stair"]
+            # frames on the stair, one frame interval each (the person steps on and off
+            # between frames)
+            t = len(on) / fps if on else math.inf
+            note = (f"{angle:.0f}-degree flight 2 m wide (run {STAIR_RUN} m, rise "
+                    f"{STAIR_RISE:g} m), 6 m levels at both ends; time = the frames with "
+                    f"place 'stair' in trajectories.txt x 1/{fps:g} s (frames {on[0]}-"
+                    f"{on[-1]})" if on else "never on the stair")
+        else:
+            # the centre of one person's density (1 x 2 m, 1 m from the far end) walks 5 m
+            # on its level, the slope, and 6 m on the other; the same blob in a flat
+            # corridor of 6 + 10 + 6 m walks those 11 m of level in T50_flat x 11 / 21: the
+            # rest of T50 is the stair's time
+            length = 2 * STAIR_LEVEL + slope
+            flat = Room(rect(0, 0, length, 2),
+                        exits=[{"name": "end", "polyline": [(length, 0), (length, 2)]}],
+                        start_areas=[{"name": "person", "polygon": rect(0.5, 0, 1.5, 2),
+                                      "count": 1}],
+                        name="rimea-02-03-flat-continuum")
+            s0 = run(save(flat), model, args.out / f"test{k}" / f"{model}-flat", args.preset,
+                     t_end=120)
+            t50, t0 = s.get("t_evac_50"), s0.get("t_evac_50")
+            level = 2 * STAIR_LEVEL - 1.0
+            t = t50 - t0 * level / (level + slope) if t50 and t0 else math.inf
+            note = (f"{angle:.0f}-degree flight as for sfm; 1 person's density over 1 x 2 m: "
+                    f"T50 {t50:.1f} s with the stair, {t0:.1f} s in a flat 2 x {length:.0f} m "
+                    f"corridor; stair time = T50 - T50_flat x {level:.0f}/{level + slope:.0f} "
+                    f"(the flat run's time for the {level:.0f} m on the levels)")
+        crit = (f"{slope:.0f} m of slope {way} in {want:.1f} s +-13 % = "
+                f"{0.87 * want:.1f}-{1.13 * want:.1f} s (speed_{way} {factor:g} x U_f "
+                f"{U:g} m/s)")
+        ok = abs(t / want - 1) <= 0.13
+        rows.append(row(k, model, crit, f"{t:.1f} s ({100 * (t / want - 1):+.0f} %)", ok,
+                        note))
+    return rows
+
+
+def test2(args, models):
+    """Test 2: one person walks up a stair 2 m wide and 10 m long along its slope; the time
+    must be the slope at the stair's speed up (speed_up x the free speed U_f) +-13 % (test
+    1's tolerance; the guideline's own wording was not at hand)."""
+    return _stair_test(args, models, up=True)
+
+
+def test3(args, models):
+    """Test 3: the same down the stair at speed_down x U_f."""
+    return _stair_test(args, models, up=False)
+
+
+def _crossings(times, n: float) -> tuple[float, float, float]:
+    """Flow [ped/s] over a section from the times [s] its first 10 % and 90 % of ``n``
+    people had crossed it (``times(m)``: the time m people had): 0.8 n / (t90 - t10);
+    and those two times."""
+    t10, t90 = times(0.1 * n), times(0.9 * n)
+    return 0.8 * n / (t90 - t10) if t90 > t10 else math.inf, t10, t90
+
+
+def _nth(sorted_times: np.ndarray, m: float) -> float:
+    """The time [s] the m-th person crossed (``sorted_times``: everyone's, sorted)."""
+    return float(sorted_times[math.ceil(m) - 1])
+
+
+def _mass_crossed(ts: np.ndarray, crossed: np.ndarray, m: float) -> float:
+    """The time [s] a mass ``m`` had crossed, from the mass ``crossed`` at the frames'
+    times ``ts`` (interpolated)."""
+    return float(np.interp(m, np.maximum.accumulate(crossed), ts))
+
+
+def test13(args, models):
+    """Test 13: 150 people leave a 10 x 8 m room through a 12 m long, 2 m wide corridor
+    that ends at the foot of a stair going up (2 m wide, 32 degrees, rise 3.5 m over a run
+    of 5.6 m) to a 4 m landing with the exit. A jam must form at the stair's foot: the flow
+    over the stair below the flow into the corridor, the density on the corridor's last
+    2 m above that in its middle."""
+    from pedmesh import Room
+    from pedmesh.geometry import Level, Stair
+
+    n, run_, rise = 150, 5.6, 3.5
+    xs = 22.0 + run_
+    ground = Room([(0, 0), (10, 0), (10, 3), (22, 3), (22, 5), (10, 5), (10, 8), (0, 8)],
+                  start_areas=[{"name": "room", "polygon": rect(0.5, 0.5, 9.5, 7.5),
+                                "count": n}], name="ground")
+    landing = Room(rect(xs, 3, xs + 4, 5), exits=[{"name": "exit", "polyline": [(xs + 4, 3),
+                                                                                (xs + 4, 5)]}],
+                   name="landing")
+    stair = Stair("stair", rect(22, 3, xs, 5), {"level": "ground", "edge": [(22, 3), (22, 5)]},
+                  {"level": "landing", "edge": [(xs, 3), (xs, 5)]})
+    b = Building([Level("ground", 0.0, ground), Level("landing", rise, landing)], [stair],
+                 name="rimea-13-stair-jam")
+    path = save(b)
+    foot, mid = (20.0, 3.0, 22.0, 5.0), (15.0, 3.0, 17.0, 5.0)
+
+    def inside(box, x, y):
+        return (x >= box[0]) & (x < box[2]) & (y >= box[1]) & (y < box[3])
+
+    rows = []
+    for model in models:
+        d = args.out / "test13" / model
+        s = run(path, model, d, args.preset, t_end=1000)
+        if model == "sfm":
+            tr, fps = places(d)
+            t_in, t_st = [], []
+            for r in tr.values():
+                on = np.array([p == "ground" for p in r["place"]])
+                k_in = np.flatnonzero(on & (r["x"] >= 10.0))
+                k_st = [j for j, p in enumerate(r["place"]) if p == "stair"]
+                t_in.append(r["t"][k_in[0]] if len(k_in) else math.inf)
+                t_st.append(r["t"][k_st[0]] if k_st else math.inf)
+            t_in, t_st = np.sort(t_in), np.sort(t_st)
+            q_in, _, _ = _crossings(partial(_nth, t_in), n)
+            q_st, ta, tb = _crossings(partial(_nth, t_st), n)
+            counts = {"foot": {}, "mid": {}}
+            for r in tr.values():
+                sel = np.array([p == "ground" for p in r["place"]]) & (r["t"] >= ta) & \
+                    (r["t"] <= tb)
+                for key, box in (("foot", foot), ("mid", mid)):
+                    for t in r["t"][sel & inside(box, r["x"], r["y"])]:
+                        counts[key][t] = counts[key].get(t, 0) + 1
+            n_frames = int(round((tb - ta) * fps)) + 1
+            rho = {key: sum(c.values()) / n_frames / 4.0 for key, c in counts.items()}
+            how = ("flows from the first frame of each person past x = 10 m (corridor) and "
+                   "on the stair (trajectories.txt)")
+        else:
+            ts, m_room, m_ground, frames = [], [], [], []
+            for t, c, a, r in surface_frames(d):
+                g = c[:, 2] < 1e-6  # the ground level
+                ts.append(t)
+                m_room.append(float(np.sum((r * a)[g & (c[:, 0] < 10.0)])))
+                m_ground.append(float(np.sum((r * a)[g])))
+                frames.append((t, c, a, r))
+            ts = np.array(ts)
+            n0 = m_ground[0]  # everyone starts on the ground level
+            q_in, _, _ = _crossings(partial(_mass_crossed, ts, n0 - np.array(m_room)), n0)
+            q_st, ta, tb = _crossings(partial(_mass_crossed, ts, n0 - np.array(m_ground)),
+                                      n0)
+            rho = {"foot": [], "mid": []}
+            for t, c, a, r in frames:
+                if ta <= t <= tb:
+                    g = c[:, 2] < 1e-6
+                    for key, box in (("foot", foot), ("mid", mid)):
+                        sel = g & inside(box, c[:, 0], c[:, 1])
+                        rho[key].append(float(np.sum((r * a)[sel]) / np.sum(a[sel])))
+            rho = {key: float(np.mean(v)) for key, v in rho.items()}
+            how = ("flows from the mass left in the room (x < 10 m) and on the ground level "
+                   "in the density frames (every 1 s)")
+        ok = q_st < q_in and rho["foot"] > rho["mid"]
+        rows.append(row(13, model, "jam at the stair's foot: flow over the stair below the "
+                                   "flow into the corridor, density on the corridor's last "
+                                   "2 m above its middle's",
+                        f"flow into the corridor {q_in:.2f} ped/s, over the stair {q_st:.2f} "
+                        f"ped/s; density at the foot {rho['foot']:.2f} /m^2, mid-corridor "
+                        f"{rho['mid']:.2f} /m^2; {s['n_evacuated']:.0f} of {n} out, T100 "
+                        f"{s['t_evac_100'] or math.nan:.0f} s", ok,
+                        "room 10 x 8 m, corridor 12 x 2 m, stair up 2 m wide (32 degrees, "
+                        f"rise {rise:g} m, run {run_:g} m), landing 4 x 2 m with the exit; "
+                        f"{how}; flow = 0.8 x {n} / (t90 - t10) of the crossing times; "
+                        "densities in x 20-22 m (foot) and 15-17 m (mid) over the stair's "
+                        "t10-t90"))
+    return rows
+
+
+def _route_building(wing: float) -> Building:
+    """Test 14: an upper level (z 3.5 m) of a west and an east wing 6 m wide and ``wing`` m
+    long joined by a 2 m corridor along their north ends, 20 people in the west wing and the
+    exit at the east wing's far end; and the way below: a 2 m stair (32 degrees, rise
+    3.5 m, run 5.6 m) down from the west wing to a 6.8 x 4 m hall of the lower level, and
+    one up from it to the east wing."""
+    from pedmesh import Room
+    from pedmesh.geometry import Level, Stair
+
+    rise, run_ = 3.5, 5.6
+    upper = Room([(0, 0), (6, 0), (6, wing), (24, wing), (24, 0), (30, 0), (30, wing + 2),
+                  (0, wing + 2)],
+                 exits=[{"name": "exit", "polyline": [(30, 1), (30, 3)]}],
+                 start_areas=[{"name": "west-wing", "polygon": rect(0.5, 0.5, 5.5, 3.5),
+                               "count": 20}], name="upper")
+    lower = Room(rect(6 + run_, 0, 24 - run_, 4), name="lower")
+    down = Stair("down", rect(6, 1, 6 + run_, 3),
+                 {"level": "lower", "edge": [(6 + run_, 1), (6 + run_, 3)]},
+                 {"level": "upper", "edge": [(6, 1), (6, 3)]})
+    up = Stair("up", rect(24 - run_, 1, 24, 3),
+               {"level": "lower", "edge": [(24 - run_, 1), (24 - run_, 3)]},
+               {"level": "upper", "edge": [(24, 1), (24, 3)]})
+    return Building([Level("lower", 0.0, lower), Level("upper", rise, upper)], [down, up],
+                    name=f"rimea-14-route-choice-{wing:g}m")
+
+
+def test14(args, models):
+    """Test 14: route choice between a way on the level and a way down a stair and up
+    another (:func:`_route_building`). From the crowd's middle the way below is 29 m, 13 m
+    of it on the stairs: 40 m of walking at the stairs' speeds (0.6 down, 0.5 up). The way on
+    the level is (a) 33 m with 8 m long wings: longer, but quicker; (b) 55 m with 20 m
+    wings: longer and slower. Reported: which way each model takes."""
+    rows = []
+    for model in models:
+        parts = []
+        for wing in (8.0, 20.0):
+            b = _route_building(wing)
+            n = b.levels[1].room.start_areas[0].count
+            rise = b.levels[1].z
+            d = args.out / "test14" / f"{model}-{wing:g}m"
+            s = run(save(b), model, d, args.preset, t_end=600)
+            if model == "sfm":
+                tr, _ = places(d)
+                stairs = sum(1 for r in tr.values() if "down" in r["place"])
+                level = sum(1 for r in tr.values()
+                            if "down" not in r["place"] and np.any(r["y"] > wing))
+                parts.append(f"{stairs} of {n} by the stairs, {level} on the level "
+                             f"({s['stair_edge_crossings']} stair-edge crossings, T100 "
+                             f"{s['t_evac_100'] or math.nan:.1f} s)")
+            else:
+                off, north = [], []
+                for t, c, a, r in surface_frames(d):
+                    m = r * a
+                    off.append(float(np.sum(m[c[:, 2] < rise - 1e-6])))  # stairs, hall
+                    north.append(float(np.sum(m[(c[:, 2] > rise - 1e-6)
+                                                & (c[:, 1] > wing)])))
+                parts.append(f"peak {max(off):.1f} of {n} on the stairs and the lower hall, "
+                             f"{max(north):.1f} in the north corridor (T100 "
+                             f"{s['t_evac_100'] or math.nan:.1f} s)")
+        how = ("the place column of trajectories.txt (by the stairs: ever on 'down'; on "
+               "the level: ever in the north corridor)" if model == "sfm" else
+               "the peak mass below the upper level and in its north corridor, from the "
+               "density frames (every 1 s)")
+        rows.append(row(14, model, "route choice between the level and the stairs "
+                                   "(reported)",
+                        f"(a) level quicker: {parts[0]}; (b) stairs quicker: {parts[1]}", True,
+                        "upper level: two wings 6 m wide, (a) 8 m, (b) 20 m long, joined by "
+                        "a 2 m corridor at their north ends; below, 2 m stairs (32 degrees, "
+                        "rise 3.5 m) down to and up from a 6.8 x 4 m hall; 20 people; way "
+                        "below 29 m (40 m at stair speeds), on the level (a) 33 m, (b) 55 m; "
+                        + how))
+    return rows
+
+
+def test8(args, models):
+    """Test 8: a parameter study on a three-storey building: the first three storeys of
+    geometries/office.json (60 people on each, two stairwells of 32-degree flights, a door
+    on each side of the ground floor), a small ensemble (2 seeds per value) over the free
+    speed U_f = 1.0, 1.34, 1.6 m/s. Reported: T90 per value (mean, min-max); pass = every
+    member finished and the mean T90 falls as U_f rises."""
+    from pedmesh.ensembles import ensemble
+    from pedmesh.io import load_room
+
+    office = load_room(Path(__file__).resolve().parents[2] / "geometries" / "office.json")
+    levels = office.levels[:3]
+    names = {lv.name for lv in levels}
+    stairs = [s for s in office.stairs if {s.bottom.level, s.top.level} <= names]
+    b = Building(levels, stairs, name="rimea-08-three-storeys",
+                 description="The first three storeys of geometries/office.json: 30 x 12 m, "
+                             "storeys 3.5 m high, two stairwells of 32-degree flights, a 1.2 m "
+                             "door on each side of the ground floor, 60 people per floor.")
+    path = save(b)
+    values = [1.0, 1.34, 1.6]
+    frame = ensemble(path, "sfm", members=2, out=args.out / "test8" / "sfm",
+                     sweep={"U_f": values}, workers=2, preset=args.preset, t_end=1000,
+                     quiet=True)
+    parts, means = [], []
+    for v in values:
+        t90 = frame.loc[np.isclose(frame["U_f"].astype(float), v), "t_evac_90"].astype(float)
+        means.append(float(t90.mean()))
+        parts.append(f"U_f {v}: {t90.mean():.1f} s ({t90.min():.1f}-{t90.max():.1f})")
+    done = bool((frame["status"] == "finished").all())
+    ok = done and all(a > b_ for a, b_ in pairwise(means))
+    return [row(8, "sfm", "T90 per free speed U_f [m/s] (mean of 2 seeds, min-max); pass = "
+                          "all finished and T90 falling with U_f",
+                "; ".join(parts) + f"; {len(frame)} members, "
+                                   f"{int((frame['status'] == 'finished').sum())} finished",
+                ok, f"{sum(lv.room.start_areas[0].count for lv in levels)} people on 3 storeys "
+                    "of the office; `pedmesh.ensembles.ensemble` (sfm, 2 members per value, "
+                    "2 workers)")]
+
+
+TESTS = {1: test1, 2: test2, 3: test3, 4: test4, 5: test5, 6: test6, 7: test7, 8: test8,
+         9: test9, 10: test10, 11: test11, 12: test12, 13: test13, 14: test14, 15: test15}
+#: the continuum models each test runs besides the social force model (of --models)
+CONTINUUM = {1: ("eos", "rdue"), 2: ("eos", "rdue"), 3: ("eos", "rdue"), 4: ("eos", "rdue"),
+             9: ("eos", "rdue"), 11: ("eos", "rdue"), 13: ("eos",),
+             14: ("eos",), 15: ("eos", "rdue")}
 
 
 def report(rows: list[dict], presets: list[str], seconds: float) -> str:
@@ -494,10 +874,13 @@ def report(rows: list[dict], presets: list[str], seconds: float) -> str:
     for r in rows:
         lines.append(f"| {r['test']} | {r['preset']} | {r['model']} | {r['criterion']} | "
                      f"{r['value']} | {'pass' if r['passed'] else '**fail**'} | {r['note']} |")
-    lines += ["", "Not covered: tests 2, 3, 13 (stairs), 8 and 14 (several floors): pedmesh "
-                  "has no stairs or floors. Test 4 replaces the periodic corridor (pedmesh has "
-                  "no periodic rooms) by a long open one measured before the rarefaction from "
-                  "its end arrives.", ""]
+    lines += ["", ("Tests 2, 3, 8, 13 and 14 run on buildings (levels joined by stairs, "
+                  "docs/buildings.md); a stair's desired speed is its speed_up (0.5) or "
+                  "speed_down (0.6) times the level's, along the slope. The criterion of "
+                  "tests 2 and 3 (+-13 %, test 1's tolerance, around the slope at that "
+                  "speed) is ours: the guideline's wording was not at hand. Test 4 replaces "
+                  "the periodic corridor (pedmesh has no periodic rooms) by a long open one "
+                  "measured before the rarefaction from its end arrives."), ""]
     return "\n".join(lines)
 
 
@@ -525,7 +908,7 @@ def main(argv=None) -> int:
     for preset in presets:
         args.preset, args.out = preset, out0 / preset
         for k in (int(x) for x in args.tests.split(",")):
-            ms = [m for m in models if m == "sfm" or k in CONTINUUM]
+            ms = [m for m in models if m == "sfm" or m in CONTINUUM.get(k, ())]
             t1 = time.perf_counter()
             new = TESTS[k](args, ms)
             for r in new:
