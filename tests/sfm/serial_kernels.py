@@ -1,5 +1,5 @@
 """The social force model's kernels as they were before they ran on threads (serial
-loops), kept as the reference that tests/sfm/test_parallel.py compares the
+loops), kept as the reference that tests/sfm/test_sfm_parallel.py compares the
 parallel kernels with, bit for bit. Not used by pedmesh itself.
 
 All kernels work on flat arrays of the ``n`` active pedestrians (rows ``0..n-1``). Neighbours

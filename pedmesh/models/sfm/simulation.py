@@ -45,7 +45,11 @@ __all__ = ["Simulation", "PAIR_SKIN", "PARALLEL_MIN_PEOPLE", "PARALLEL_MIN_PEOPL
 #: busy cores, wait for each other (see :data:`pedmesh.models.continuum.solver.
 #: PARALLEL_MIN_CELLS`); the steps give the same results on any number of threads
 PARALLEL_MIN_PEOPLE = 5_000
-#: the same under numba's TBB threading layer (measured on 2 cores: ...)
+#: the same under numba's TBB threading layer. A step launches about 20 parallel loops;
+#: measured on 2 cores, a launch costs 1-1.5 us under TBB, and a step of 2,400 people
+#: (Example 2) 0.8-1.3 ms on one thread: from about 1,000 people the launches cost a few
+#: per cent of a step. (Not a measured break-even: the shared development machine gave
+#: the second thread too little of a core to measure one.)
 PARALLEL_MIN_PEOPLE_TBB = 1_000
 #: Verlet skin [m] of the per-step pair list (rebuilt within a step if anyone moves more
 #: than half of it)
