@@ -1,60 +1,134 @@
-"""What the second core buys: the continuum kernels on 1 and on 2 numba threads.
+"""What more cores buy: both models' kernels, and whole steps, on 1, 2, ... numba threads.
 
-A continuum run (default eos on the 100,000-person venue, 65,000 cells) is advanced to a
-state with a crowd in motion; then each hot kernel of a step, and the whole step, is timed
-on 1 and 2 threads, the two alternating (A, B, A, B, ...) so that the shared machine's
-noise hits both alike. Printed per kernel: median and best time per call on each thread
-count and the speed-up (median over median, best over best). The kernels are those of
-``FVSolver.residual`` and of the implicit correction: the reconstruction, the high- and
-first-order fluxes, the flux limiter with the divergence, the relaxation source, and the
-implicit correction (whose conjugate gradients run in scipy, serially).
+A run is advanced to a state with a crowd in motion; then each hot kernel of a step, and
+the whole step, is timed on every thread count asked for, the counts alternating (1, 2,
+4, 1, 2, 4, ...) so that the shared machine's noise hits them alike. Printed per kernel:
+median and best time per call on each thread count, and the speed-up against one thread
+(median over median, best over best).
 
-    python benchmarks/threads.py [--room geometries/venue.json] [--model eos]
-                                 [--warm 60] [--repeats 15]
+* ``--model eos`` (or another continuum model; default room: the 100,000-person venue,
+  65,000 cells): the kernels of ``FVSolver.residual`` and of the implicit correction (the
+  reconstruction, the high- and first-order fluxes, the flux limiter with the divergence,
+  the relaxation source, the implicit correction, whose conjugate gradients run in scipy,
+  serially) and the whole step.
+* ``--model sfm`` (default room: the 10,000-person venue; ``--room
+  geometries/venue.json`` for 100,000): the cell list, the pair list with the kernel
+  density, the pair forces of a stage, a whole stage (``accel``: pairs, walls, route,
+  driving term), the wall crossings and exits (``settle``), the whole Runge-Kutta step and
+  ``Simulation.step`` (with the route solve when it is due).
+* ``--example2 N``: also N whole processes ``pedmesh run geometries/example2.json
+  --model sfm --preset paper --param threads=T`` per thread count, interleaved (wall time
+  and CPU time of the whole process, start-up and output included).
 
-Results are bitwise the same on any thread count (tests/continuum/test_parallel.py); this
-script measures only the time.
+``--threads 1,2,4``: the thread counts (default: 1, 2, 4, ... up to numba's
+``NUMBA_NUM_THREADS``, the machine's cores). ``--json FILE``: the figures, with the
+threading layer (``numba.threading_layer()``, and what :mod:`pedmesh._threads` did to load
+oneTBB) and the machine.
+
+    python benchmarks/threads.py [--model eos|sfm] [--room FILE] [--threads 1,2]
+                                 [--warm S] [--repeats 15] [--example2 N] [--json FILE]
+
+Results are bitwise the same on any thread count (tests/continuum/test_parallel.py,
+tests/sfm/test_sfm_parallel.py); this script measures only the time.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
+import os
+import resource
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
-from pedmesh.mesh import triangulate
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
 
-def main(argv=None) -> int:
+def _thread_counts(text: str | None) -> list[int]:
     import numba
 
+    most = numba.config.NUMBA_NUM_THREADS
+    if text:
+        counts = sorted({int(t) for t in text.split(",")})
+        if counts[0] < 1 or counts[-1] > most:
+            raise SystemExit(f"--threads: each count must be in 1..{most} (NUMBA_NUM_THREADS)")
+    else:
+        counts, t = [], 1
+        while t < most:
+            counts.append(t)
+            t *= 2
+        counts.append(most)
+    if 1 not in counts:
+        counts = [1, *counts]
+    if len(counts) < 2:
+        raise SystemExit("needs NUMBA_NUM_THREADS >= 2")
+    return counts
+
+
+def _time(cases, counts, repeats, context=None) -> list[dict]:
+    """Time each case on each thread count, the counts alternating; print and return the
+    rows (times in seconds)."""
+    import contextlib
+
+    import numba
+
+    context = context or contextlib.nullcontext
+    head = " ".join(f"{f'{t} thr med / best':>22}" for t in counts)
+    ratios = " ".join(f"{f'x{t} med/best':>13}" for t in counts[1:])
+    print(f"{'kernel':<44} {head} {ratios}")
+    rows = []
+    with context():
+        for name, fn in cases:
+            times = {t: [] for t in counts}
+            for t in counts:  # compile / warm each
+                numba.set_num_threads(t)
+                fn()
+            for _ in range(repeats):
+                for t in counts:
+                    numba.set_num_threads(t)
+                    a = time.perf_counter()
+                    fn()
+                    times[t].append(time.perf_counter() - a)
+            med = {t: statistics.median(v) for t, v in times.items()}
+            best = {t: min(v) for t, v in times.items()}
+            row = {"kernel": name, "median_s": med, "best_s": best,
+                   "ratio_median": {t: med[t] / med[1] for t in counts},
+                   "ratio_best": {t: best[t] / best[1] for t in counts}}
+            rows.append(row)
+            cells = " ".join(f"{1e3 * med[t]:10.2f} / {1e3 * best[t]:7.2f} ms" for t in counts)
+            rat = " ".join(f"{row['ratio_median'][t]:6.2f}/{row['ratio_best'][t]:5.2f}"
+                           for t in counts[1:])
+            print(f"{name:<44} {cells} {rat}", flush=True)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return rows
+
+
+def continuum_cases(args):
+    """The continuum's kernels and whole step (see the module docstring)."""
     from pedmesh.io import load_room
+    from pedmesh.mesh import triangulate
     from pedmesh.models import get_model
 
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--room", default=str(ROOT / "geometries" / "venue.json"))
-    ap.add_argument("--model", default="eos")
-    ap.add_argument("--warm", type=float, default=60.0,
-                    help="simulated seconds before timing (default 60)")
-    ap.add_argument("--repeats", type=int, default=15)
-    args = ap.parse_args(argv)
-    if numba.config.NUMBA_NUM_THREADS < 2:
-        raise SystemExit("needs NUMBA_NUM_THREADS >= 2")
-    room = load_room(args.room)
+    room = load_room(args.room or ROOT / "geometries" / "venue.json")
     mesh = triangulate(room)
     run = get_model(args.model).build(room, mesh, {"threads": 2})
     t0 = time.perf_counter()
-    while run.t < args.warm and not run.done:
+    warm = 60.0 if args.warm is None else args.warm
+    while run.t < warm and not run.done:
         run.step()
     s = run.solver
     Q, t = run.state.Q, run.t
-    print(f"{args.model} on {Path(args.room).name}: {mesh.n_triangles} cells, "
-          f"{s.n_active} active, {run.remaining:.0f} people inside at t = {t:.1f} s "
-          f"(warm-up {time.perf_counter() - t0:.0f} s)")
+    print(f"{args.model} on {room.name}: {mesh.n_triangles} cells, {s.n_active} active, "
+          f"{run.remaining:.0f} people inside at t = {t:.1f} s (warm-up "
+          f"{time.perf_counter() - t0:.0f} s)")
     dt = s.max_dt(Q, t)
     s._buffers(Q.shape[1])
     nv = Q.shape[1]
@@ -92,30 +166,197 @@ def main(argv=None) -> int:
         st.outflow = np.zeros(s.n_exits)
         s.step(st, dt)
 
-    cases = [("reconstruction", recon), ("high-order fluxes", high),
-             ("first-order fluxes + wave speeds", low), ("residual (all of the above, "
-                                                         "limiter, sources)", residual),
-             ("residual + implicit correction", correction), ("whole step (2 stages)", step)]
     from pedmesh.models.continuum.solver import _one_blas_thread
 
-    print(f"{'kernel':<48} {'1 thread med / best':>22} {'2 threads med / best':>22} "
-          f"{'speed-up med / best':>20}")
-    with _one_blas_thread():
-        for name, fn in cases:
-            times = {1: [], 2: []}
-            for n in (1, 2):  # compile / warm both
-                numba.set_num_threads(n)
-                fn()
-            for _ in range(args.repeats):
-                for n in (1, 2):
-                    numba.set_num_threads(n)
-                    a = time.perf_counter()
-                    fn()
-                    times[n].append(time.perf_counter() - a)
-            m1, m2 = statistics.median(times[1]), statistics.median(times[2])
-            b1, b2 = min(times[1]), min(times[2])
-            print(f"{name:<48} {1e3 * m1:10.2f} / {1e3 * b1:6.2f} ms {1e3 * m2:10.2f} / "
-                  f"{1e3 * b2:6.2f} ms {m1 / m2:10.2f} / {b1 / b2:5.2f}", flush=True)
+    cases = [("reconstruction", recon), ("high-order fluxes", high),
+             ("first-order fluxes + wave speeds", low),
+             ("residual (above + limiter, sources)", residual),
+             ("residual + implicit correction", correction), ("whole step (2 stages)", step)]
+    info = {"model": args.model, "room": room.name, "cells": mesh.n_triangles,
+            "t": t, "inside": run.remaining}
+    return info, cases, _one_blas_thread
+
+
+def sfm_cases(args):
+    """The social force model's kernels, a stage, a step (see the module docstring)."""
+    import numba
+
+    import pedmesh
+    from pedmesh.models.sfm import kernels as K
+    from pedmesh.models.sfm.simulation import PAIR_SKIN
+
+    room = args.room or ROOT / "geometries" / "venue_10k.json"
+    t0 = time.perf_counter()
+    run = pedmesh.build(room, model="sfm", preset=args.preset)
+    sim = run.sim
+    warm = 20.0 if args.warm is None else args.warm
+    while run.t < warm and not run.done:
+        run.step()
+    n, p, w, mesh = sim.n, sim.params, sim.walls, sim.mesh
+    every = sim.numerics.density_stages == 3
+    rc_list = max(sim.rc_f + PAIR_SKIN, sim.rc_d + PAIR_SKIN) if every else sim.rc_f + PAIR_SKIN
+    print(f"sfm ({args.preset}) on {Path(room).stem}: {n} people inside at t = {run.t:.1f} s, "
+          f"{sim.last_pair_count} pairs listed (warm-up {time.perf_counter() - t0:.0f} s)")
+    # copies of the state, so that the timed calls leave the run as it is
+    x, v, tri, rho = sim.x.copy(), sim.v.copy(), sim.tri[:n].copy(), sim.rho.copy()
+    xs, vs, F, rw, e = (np.empty_like(x), np.empty_like(x), np.empty_like(x), np.empty(len(x)),
+                        sim._e.copy())
+    pi, pj = sim._pi.copy(), sim._pj.copy()
+    start, order = sim._cell_start.copy(), sim._cell_order.copy()
+    tbuf, rs, cf, ue = sim._tbuf.copy(), sim._rs.copy(), sim._cf.copy(), sim._ue.copy()
+    listed = {}
+
+    def cells():
+        K.build_cells(x, n, sim._cx0, sim._cy0, sim._cinv, sim._cnx, sim._cny, start, order)
+
+    def pairs():
+        t = numba.get_num_threads()
+        lay, pos = K.pair_blocks(n, start, order, sim._cnx, sim._cny, t)
+        listed[t] = (lay, pos) + K.list_pairs(
+            x, n, start, order, sim._cnx, sim._cny, rc_list, sim.rc_f + PAIR_SKIN, pi, pj, rw,
+            sim.rc_d, p.R, not every, lay, pos)
+
+    def blocks():
+        """The list's blocks for the current thread count (the list is the same for any)."""
+        t = numba.get_num_threads()
+        if t not in listed:
+            pairs()
+        return listed[t]
+
+    def forces():
+        lay, pos, nn, nf = blocks()
+        K.pair_accel_blocks(x, v, n, pi, pj, nn, nf, lay, pos, start, sim.rc_f, sim.rc_d,
+                            sim.rad, p.A, p.B, p.k, p.kappa, p.m, p.R, F, rw, every, sim._rs
+                            if p.shrink > 0 else sim.rad, p.vision, e)
+
+    def stage():
+        lay, pos, nn, nf = blocks()
+        K.accel(x, v, n, tri, mesh.points, mesh.triangles, mesh.triangle_neighbors, sim._dpack,
+                pi, pj, nn, nf, w.piece, w.next_seg, w.x0, w.y0, w.inv_cell, w.nx, w.ny,
+                w.cell_ptr, w.cell_seg, sim.rc_f, sim.rc_d, sim.rc_w, sim.rad, p.A, p.B, p.k,
+                p.kappa, p.m, p.R, p.tau, sim._u_eff, sim._law, sim._const_u, sim._use_const, F,
+                rw, e, every, sim.toff, tbuf, sim._space, rs, sim._wmap, sim._wgeo, cf, ue, lay,
+                pos, start)
+
+    start3, order3, pi3, pj3 = start.copy(), order.copy(), pi.copy(), pj.copy()
+
+    def rk3():
+        xx, vv, tt = x.copy(), v.copy(), tri.copy()
+        K.rk3_step(xx, vv, n, sim.numerics.dt, tt, mesh.points, mesh.triangles,
+                   mesh.triangle_neighbors, sim._dpack, start3, order3, sim._cx0, sim._cy0,
+                   sim._cinv, sim._cnx, sim._cny, w.piece, w.next_seg, w.x0, w.y0, w.inv_cell,
+                   w.nx, w.ny, w.cell_ptr, w.cell_seg, sim.rc_f, sim.rc_d, sim.rc_w, sim.rad, p.A,
+                   p.B, p.k, p.kappa, p.m, p.R, p.tau, sim._u_eff, sim._law, sim._const_u,
+                   sim._use_const, xs, vs, F, rw, rho.copy(), e, pi3, pj3, PAIR_SKIN,
+                   int(sim.numerics.density_stages), sim.toff, tbuf, sim._space, rs, sim._wmap,
+                   sim._wgeo, cf, ue, numba.get_num_threads())
+        listed["step"] = (xx, vv, tt)
+
+    def settle():
+        if "step" not in listed:
+            rk3()
+        xx, vv, tt = (a.copy() for a in listed["step"])
+        K.settle(x, xx, vv, tt, n, mesh.points, mesh.triangles, mesh.triangle_neighbors,
+                 mesh.triangle_edges, mesh.edge_kind, mesh.edge_owner, mesh.edge_normals,
+                 sim._exit_of, sim._exit_frac, sim._dpack)
+
+    def whole():
+        # the run's own step (its threads from numba's count: threads None), on the real
+        # state: it moves on, as a run does
+        sim.numerics = dataclasses.replace(sim.numerics, threads=numba.get_num_threads())
+        sim.step()
+
+    cases = [("cell list", cells), ("pair list + kernel density", pairs),
+             ("pair forces (one stage)", forces),
+             ("stage: pairs, walls, route, driving", stage),
+             ("settle: wall crossings, exits", settle),
+             ("Runge-Kutta step (3 stages)", rk3),
+             ("Simulation.step (incl. routes when due)", whole)]
+    info = {"model": "sfm", "preset": args.preset, "room": Path(room).stem, "people": n,
+            "t": run.t, "pairs": int(sim.last_pair_count)}
+    return info, cases, None
+
+
+def example2_processes(counts, repeats) -> list[dict]:
+    """Whole ``pedmesh run`` processes of Example 2 (SFM, paper preset) on each thread
+    count, interleaved; wall and CPU time (user + system) of each."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
+    times = {t: [] for t in counts}
+    cpu = {t: [] for t in counts}
+    summaries = {}
+    print(f"Example 2 (sfm, paper), whole processes, {repeats} per thread count, interleaved")
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(repeats):
+            for t in counts:
+                out = Path(tmp) / f"r{r}-t{t}"
+                cmd = [sys.executable, "-m", "pedmesh", "run",
+                       str(ROOT / "geometries" / "example2.json"), "--model", "sfm",
+                       "--preset", "paper", "--param", f"threads={t}", "--out", str(out), "-q"]
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                a = time.perf_counter()
+                subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
+                times[t].append(time.perf_counter() - a)
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                cpu[t].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
+                s = json.loads((out / "summary.json").read_text())
+                summaries.setdefault(t, set()).add((s["t_evac_50"], s["t_evac_90"],
+                                                    s["t_evac_100"], s["steps"]))
+                print(f"  run {r + 1}, {t} thread(s): {times[t][-1]:6.1f} s wall, "
+                      f"{cpu[t][-1]:6.1f} s CPU", flush=True)
+    same = len({x for v in summaries.values() for x in v}) == 1
+    rows = []
+    for t in counts:
+        med, best = statistics.median(times[t]), min(times[t])
+        row = {"threads": t, "wall_s": times[t], "cpu_s": cpu[t], "median_s": med,
+               "best_s": best, "ratio_median": med / statistics.median(times[1]),
+               "ratio_best": best / min(times[1])}
+        rows.append(row)
+        print(f"  {t} thread(s): median {med:6.1f} s, best {best:6.1f} s, CPU median "
+              f"{statistics.median(cpu[t]):6.1f} s; x{row['ratio_median']:.2f} median, "
+              f"x{row['ratio_best']:.2f} best")
+    print(f"  T50/T90/T100/steps the same on every run: {same}")
+    return rows
+
+
+def main(argv=None) -> int:
+    import numba
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--model", default="eos", help="sfm or a continuum model (default eos)")
+    ap.add_argument("--room", default=None)
+    ap.add_argument("--preset", default="paper", help="the SFM's preset (default paper)")
+    ap.add_argument("--threads", default=None, help="thread counts, e.g. 1,2,4 (default: "
+                    "powers of 2 up to NUMBA_NUM_THREADS)")
+    ap.add_argument("--warm", type=float, default=None,
+                    help="simulated seconds before timing (default 60 continuum, 20 sfm)")
+    ap.add_argument("--repeats", type=int, default=15)
+    ap.add_argument("--example2", type=int, default=0, metavar="N",
+                    help="also N whole Example 2 SFM processes per thread count")
+    ap.add_argument("--json", default=None, help="write the figures to this file")
+    args = ap.parse_args(argv)
+    counts = _thread_counts(args.threads)
+    if args.model in ("sfm", "sf", "social-force"):
+        info, cases, context = sfm_cases(args)
+    else:
+        info, cases, context = continuum_cases(args)
+    from pedmesh._threads import tbb_load_status
+    from pedmesh.models.continuum.solver import threading_layer
+
+    layer = threading_layer()
+    print(f"numba {numba.__version__}, threading layer '{layer}' (oneTBB "
+          f"{tbb_load_status()}), NUMBA_NUM_THREADS {numba.config.NUMBA_NUM_THREADS}")
+    rows = _time(cases, counts, args.repeats, context)
+    whole = example2_processes(counts, args.example2) if args.example2 else None
+    if args.json:
+        from _common import write_json
+
+        write_json(args.json, {
+            "threading_layer": layer, "tbb": tbb_load_status(),
+            "numba": numba.__version__, "numba_num_threads": numba.config.NUMBA_NUM_THREADS,
+            "threads": counts, "repeats": args.repeats, "state": info, "kernels": rows,
+            "example2_processes": whole})
+        print(f"figures in {args.json}")
     return 0
 
 

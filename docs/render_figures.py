@@ -9,7 +9,9 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
   (every continuum model against the social force model, whole process);
 * ``docs/images/work_precision.csv``: ``python benchmarks/continuum_speed.py --sweep
   --plot docs/images/work_precision.png`` (the CSV is written beside the picture);
-* ``docs/data/eikonal.json``: ``python benchmarks/eikonal.py --json FILE``.
+* ``docs/data/eikonal.json``: ``python benchmarks/eikonal.py --json FILE``;
+* ``docs/data/threads_sfm.json``: ``python benchmarks/threads.py --model sfm --json FILE``
+  (the social force model's kernels and whole Example 2 processes on 1, 2, ... threads).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -110,9 +112,42 @@ def eikonal(path: Path = DATA / "eikonal.json") -> str:
     return "\n".join(lines)
 
 
+def threads_sfm(path: Path = DATA / "threads_sfm.json") -> str:
+    record = json.loads(path.read_text())
+    res = record["results"]
+    counts = [str(t) for t in res["threads"]]
+    st = res["state"]
+    head = ["kernel", *(f"{t} thr. median / best [ms]" for t in counts),
+            *(f"x {t} thr. median / best" for t in counts[1:])]
+    rows = [[r["kernel"], *(f"{1e3 * r['median_s'][t]:.2f} / {1e3 * r['best_s'][t]:.2f}"
+                            for t in counts),
+             *(f"{r['ratio_median'][t]:.2f} / {r['ratio_best'][t]:.2f}" for t in counts[1:])]
+            for r in res["kernels"]]
+    lines = [f"The social force model ({st['preset']} preset) on `{st['room']}` with "
+             f"{st['people']:,} people inside at t = {st['t']:.0f} s ({st['pairs']:,} pairs "
+             f"listed), numba's `{res['threading_layer']}` threading layer; each kernel "
+             f"{res['repeats']} times per thread count, the counts interleaved; *x N thr.*: "
+             "the time on N threads over that on one.", ""]
+    lines += _table(head, rows, "l")
+    whole = res.get("example2_processes")
+    if whole:
+        rows = [[str(r["threads"]), f"{r['median_s']:.1f}", f"{r['best_s']:.1f}",
+                 f"{sorted(r['cpu_s'])[len(r['cpu_s']) // 2]:.1f}", f"{r['ratio_median']:.2f}",
+                 f"{r['ratio_best']:.2f}"] for r in whole]
+        lines += ["", f"Whole `pedmesh run geometries/example2.json --model sfm --preset paper "
+                  f"--param threads=N` processes (start-up, output and safety measures "
+                  f"included), {len(whole[0]['wall_s'])} per thread count, interleaved; *CPU*: "
+                  "user and system time of the process (at most wall time x threads):", ""]
+        lines += _table(["threads", "wall median [s]", "wall best [s]", "CPU median [s]",
+                         "x median", "x best"], rows)
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
-            "figures_eikonal.md": eikonal}
+            "figures_eikonal.md": eikonal,
+            "figures_threads_sfm.md": threads_sfm}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

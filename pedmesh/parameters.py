@@ -429,9 +429,9 @@ FV_NUMERICS: tuple[Parameter, ...] = declare(
               "from weights that see every wiggle to the linear weights)", range=(1e-6, 1e6)),
     _switch("route_every_step", True, "re-solve the eikonal every step (at most every "
             "route_interval), else only at the start", cast=bool),
-    Parameter("threads", None, "-", "threads of the compiled kernels (None: numba's count "
-              "on large meshes, else 1)", kind="integer", low=1.0, low_closed=True,
-              optional=True, cast=int, range=(1, 1024)),
+    Parameter("threads", None, "-", "threads of the compiled kernels, of either model "
+              "(None: numba's count on large meshes and crowds, else 1)", kind="integer",
+              low=1.0, low_closed=True, optional=True, cast=int, range=(1, 1024)),
     Parameter("implicit_pressure", None, "0/1", "semi-implicit step with the pressure "
               "implicit (None: on for every model with a pressure law in its flux)",
               kind="switch", optional=True, cast=bool),

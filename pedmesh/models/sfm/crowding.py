@@ -93,13 +93,20 @@ def _lookup(p, n, width, x0, y0, inv, out):
         out[i] = width[a, b]
 
 
+@nb.njit(cache=True, inline="always")
+def crowd_factor_at(px, py, width, x0, y0, inv, w_queue, span):
+    """The crowding factor in [0, 1] of a pedestrian at (px, py) (``span``: the crowd width
+    less the queue width)."""
+    nx, ny = width.shape
+    a = min(max(int((px - x0) * inv), 0), nx - 1)
+    b = min(max(int((py - y0) * inv), 0), ny - 1)
+    f = (width[a, b] - w_queue) / span
+    return 0.0 if f < 0.0 else (1.0 if f > 1.0 else f)
+
+
 @nb.njit(cache=True)
 def crowd_factors(x, n, width, x0, y0, inv, w_queue, w_crowd, c):
     """The crowding factors ``c[i]`` in [0, 1] of pedestrians at ``x`` (see the module)."""
-    nx, ny = width.shape
     span = w_crowd - w_queue
     for i in range(n):
-        a = min(max(int((x[i, 0] - x0) * inv), 0), nx - 1)
-        b = min(max(int((x[i, 1] - y0) * inv), 0), ny - 1)
-        f = (width[a, b] - w_queue) / span
-        c[i] = 0.0 if f < 0.0 else (1.0 if f > 1.0 else f)
+        c[i] = crowd_factor_at(x[i, 0], x[i, 1], width, x0, y0, inv, w_queue, span)

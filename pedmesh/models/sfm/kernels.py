@@ -5,6 +5,20 @@ come from a cell list (counting sort into square cells at least as large as the 
 radius) searched over half of the 3x3 stencil, so every pair is visited once and its force
 is added to one pedestrian and subtracted from the other: Newton's third law holds to
 round-off, and the search is O(n).
+
+The per-step work runs on numba's threads (``prange``; the caller sets their number with
+``numba.set_num_threads``), and its results are bitwise the same on any number of threads,
+and the same as those of the serial loops these kernels replaced. Each thread writes only
+its own pedestrians, and every sum is taken in the serial loop's order. The per-pedestrian
+work (walls, route, driving term, Runge-Kutta stages, wall crossings and exits) is split
+by pedestrian. The pair work is split by cell: each thread takes a run of consecutive cells
+(a *block*, :func:`pair_blocks`) and repeats the serial loop over its own cells, adding a
+pair's terms only to its own pedestrians; a pedestrian's terms from pairs in the cells just
+before its block (at most one row of cells back: the half stencil reaches ``ny + 1`` cells
+ahead) are added first, by its own thread going through those pairs again (the block's
+*halo*). So each pedestrian's forces and density are summed term by term in the serial
+order (:func:`list_pairs`, :func:`pair_accel_blocks`), and the pair list is the serial one.
+On one thread there is one block and no halo: the serial loops themselves.
 """
 
 from __future__ import annotations
@@ -14,34 +28,47 @@ import math
 import numba as nb
 import numpy as np
 
-from ...eikonal.direction import _inside_packed, _interpolate
-from ...speed import shape
-from .crowding import crowd_factors
-from .forces import pair_force
-from .hinge_kernels import hinge_accel, hinge_density
+from ..._threads import ensure_tbb
+
+ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
+
+from ...eikonal.direction import _inside_packed, _interpolate  # noqa: E402
+from ...speed import shape  # noqa: E402
+from .crowding import crowd_factor_at  # noqa: E402
+from .forces import pair_force  # noqa: E402
+from .hinge_kernels import hinge_accel, hinge_density  # noqa: E402
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
 #: barycentric margin of the division-free "still inside its triangle" test; anything
 #: closer to an edge goes through the exact test and the walk, as before
 INSIDE_MARGIN = 1e-9
+#: pedestrians per chunk of the per-pedestrian loops that call the direction interpolation
+#: once per chunk
+CHUNK = 256
 
 
 # ------------------------------------------------------------------ cell list
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
+def _cell_of(px, py, x0, y0, inv_cell, nx, ny):
+    ci = int((px - x0) * inv_cell)
+    cj = int((py - y0) * inv_cell)
+    ci = min(max(ci, 0), nx - 1)
+    cj = min(max(cj, 0), ny - 1)
+    return ci * ny + cj
+
+
+@nb.njit(parallel=True, cache=True)
 def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
-    """Counting sort of pedestrians into cells; ``cell_start`` has nx*ny+1 entries."""
+    """Counting sort of pedestrians into cells; ``cell_start`` has nx*ny+1 entries. Within
+    a cell the pedestrians are in the order of their rows."""
     nc = nx * ny
+    cell_of = np.empty(n, np.int64)
+    for i in nb.prange(n):
+        cell_of[i] = _cell_of(x[i, 0], x[i, 1], x0, y0, inv_cell, nx, ny)
     for c in range(nc + 1):
         cell_start[c] = 0
-    cell_of = np.empty(n, np.int64)
     for i in range(n):
-        ci = int((x[i, 0] - x0) * inv_cell)
-        cj = int((x[i, 1] - y0) * inv_cell)
-        ci = min(max(ci, 0), nx - 1)
-        cj = min(max(cj, 0), ny - 1)
-        c = ci * ny + cj
-        cell_of[i] = c
-        cell_start[c + 1] += 1
+        cell_start[cell_of[i] + 1] += 1
     for c in range(nc):
         cell_start[c + 1] += cell_start[c]
     fill = cell_start[:nc].copy()
@@ -51,52 +78,136 @@ def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
         fill[c] += 1
 
 
-# ------------------------------------------------------------------ pair forces + density
-@nb.njit(cache=True)
-def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
-                with_density):
-    """All pairs closer than ``rc``, each once (i from the lower cell), split in two groups:
-    the *near* pairs (closer than ``rc_near``) fill ``pi``/``pj`` from the front, the *far*
-    ones from the back. Returns ``(n_near, n_far)``, or ``(-1, -1)`` if ``pi``/``pj`` are
-    too small. The cells must be at least ``rc`` wide.
+# ------------------------------------------------------------------ pair list + density
+@nb.njit(cache=True, inline="always")
+def _stencil_cell(ci, cj, q, nx, ny):
+    """Cell ``q`` of the half stencil of cell (ci, cj): q = 0 the cell itself, then
+    (+1,-1), (+1,0), (+1,+1), (0,+1); -1 if it lies outside the grid."""
+    if q == 0:
+        ni = ci
+        nj = cj
+    elif q < 4:
+        ni = ci + 1
+        nj = cj + q - 2
+    else:
+        ni = ci
+        nj = cj + 1
+    if ni >= nx or nj < 0 or nj >= ny:
+        return -1
+    return ni * ny + nj
 
-    The pair forces only act within the near group (``rc_near`` = force cut-off + skin), so
-    the far group needs the density kernel alone. With ``with_density`` the Gaussian kernel
-    densities (cut-off ``rc_d``, self term included) at these positions go into ``rho`` on
-    the way, and the far pairs are not stored (``n_far = 0``).
+
+@nb.njit(cache=True)
+def pair_blocks(n, cell_start, cell_order, nx, ny, nblocks):
+    """Cut the cells into ``nblocks`` runs of consecutive cells with about equally many
+    pedestrians: ``lay`` (nblocks + 1, 5) int64 with block b's first cell in ``lay[b, 0]``
+    (``lay[nblocks, 0]`` = the number of cells); the other columns are filled by
+    :func:`list_pairs`. ``pos`` (n,): each pedestrian's place in the cell order (the
+    inverse of ``cell_order``): a block's pedestrians are the places ``cell_start[lay[b,
+    0]] ...``, and its thread sums into arrays by place, so that two threads never write
+    to the same stretch of memory (empty for one block, which sums by row)."""
+    nc = nx * ny
+    lay = np.zeros((nblocks + 1, 5), np.int64)
+    for b in range(1, nblocks):
+        lay[b, 0] = np.searchsorted(cell_start[: nc + 1], (b * n) // nblocks)
+    lay[nblocks, 0] = nc
+    pos = np.empty(n if nblocks > 1 else 0, np.int64)  # (one block sums by row)
+    if nblocks > 1:
+        for a in range(n):
+            pos[cell_order[a]] = a
+    return lay, pos
+
+
+@nb.njit(cache=True, inline="always")
+def _block_of(lay, c):
+    """The block of cell ``c`` (the last one starting at or before it)."""
+    b = np.searchsorted(lay[:, 0], c, side="right") - 1
+    while lay[b + 1, 0] <= c:  # (skip empty blocks)
+        b += 1
+    return b
+
+
+@nb.njit(parallel=True, cache=True)
+def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
+               with_density, lay, pos):
+    """:func:`build_pairs` on threads, one block of cells (:func:`pair_blocks`) each.
+
+    Block b searches its own cells in the serial order and stores its pairs in its share
+    ``b cap / B ... (b + 1) cap / B`` of ``pi``/``pj`` (B blocks; near ones from the front,
+    far ones from the back); the shares are then moved together into one list in block
+    order, which is the serial search's list. A pedestrian's density gets its terms as a
+    partner ``j`` from pairs whose ``i`` lies in a lower cell, up to ``ny + 1`` cells
+    before its own: block b first goes through those pairs of the cells just before its
+    first one (its *halo*, to add their terms to its own pedestrians only), then through
+    its own cells, adding a pair's term to ``j`` only if ``j`` is its own. So every
+    density is summed in the serial order: the self term, then the terms in the order the
+    serial search added them.
+
+    Fills ``lay[b, 1]`` (block b's first near pair), ``lay[b, 2]`` (its far pairs before
+    block b's), ``lay[b, 3]`` (the first near pair of its halo), ``lay[b, 4]`` (the far
+    pairs before those of its halo). ``pos``: from :func:`pair_blocks`. Returns ``(n_near,
+    n_far)``, or ``(-1, -1)`` if the list, or a block's share of ``pi``/``pj``, is too
+    small.
     """
     rc2 = rc * rc
     rn2 = rc_near * rc_near
     rd2 = rc_d * rc_d
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
-    if with_density:
-        for i in range(n):
-            rho[i] = w0
     cap = pi.shape[0]
-    m_near = 0
-    m_far = 0
-    for ci in range(nx):
-        for cj in range(ny):
-            c = ci * ny + cj
+    nc = nx * ny
+    nblocks = lay.shape[0] - 1
+    counts = np.zeros((nblocks, 3), np.int64)  # near, far, 1 if the share overflowed
+    # several blocks sum the densities by place in the cell order (a block's own places
+    # are one stretch of memory), one sums them into rho
+    many = nblocks > 1
+    racc = np.empty(n if with_density and many else 0)
+    acc = racc if many else rho
+    cloc = np.zeros((nc, 2), np.int64)  # near and far pairs of the block before a cell
+    for bb in nb.prange(nblocks):
+        b = np.int64(bb)
+        c0 = lay[b, 0]
+        c1 = lay[b + 1, 0]
+        lo = (b * cap) // nblocks
+        size = ((b + 1) * cap) // nblocks - lo
+        if with_density:
+            for a in range(cell_start[c0], cell_start[c1]):
+                acc[a if many else cell_order[a]] = w0
+        if with_density:  # the halo: the terms its pedestrians get from the cells before
+            for c in range(max(c0 - ny - 1, 0), c0):
+                ci = c // ny
+                cj = c % ny
+                for q in range(1, 5):
+                    c2 = _stencil_cell(ci, cj, q, nx, ny)
+                    if c2 < c0 or c2 >= c1:
+                        continue
+                    for a in range(cell_start[c], cell_start[c + 1]):
+                        i = cell_order[a]
+                        xi = x[i, 0]
+                        yi = x[i, 1]
+                        for b2 in range(cell_start[c2], cell_start[c2 + 1]):
+                            j = cell_order[b2]
+                            dx = xi - x[j, 0]
+                            dy = yi - x[j, 1]
+                            d2 = dx * dx + dy * dy
+                            if d2 < rd2:
+                                acc[b2 if many else j] += w0 * math.exp(-d2 * invR2)
+        m_near = 0
+        m_far = 0
+        for c in range(c0, c1):
+            cloc[c, 0] = m_near
+            cloc[c, 1] = m_far
             s0 = cell_start[c]
             s1 = cell_start[c + 1]
             if s0 == s1:
                 continue
+            ci = c // ny
+            cj = c % ny
             for q in range(5):
-                # q = 0: the cell itself (pairs a < b); then (+1,-1), (+1,0), (+1,+1), (0,+1)
-                if q == 0:
-                    ni = ci
-                    nj = cj
-                elif q < 4:
-                    ni = ci + 1
-                    nj = cj + q - 2
-                else:
-                    ni = ci
-                    nj = cj + 1
-                if ni >= nx or nj < 0 or nj >= ny:
+                c2 = _stencil_cell(ci, cj, q, nx, ny)
+                if c2 < 0:
                     continue
-                c2 = ni * ny + nj
+                mine = c2 < c1  # are the partners in this stencil cell this block's own?
                 t1 = cell_start[c2 + 1]
                 for a in range(s0, s1):
                     i = cell_order[a]
@@ -104,30 +215,104 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
                     yi = x[i, 1]
                     rhoi = 0.0
                     t0 = a + 1 if q == 0 else cell_start[c2]
-                    for b in range(t0, t1):
-                        j = cell_order[b]
+                    for b2 in range(t0, t1):
+                        j = cell_order[b2]
                         dx = xi - x[j, 0]
                         dy = yi - x[j, 1]
                         d2 = dx * dx + dy * dy
                         if with_density and d2 < rd2:
                             w = w0 * math.exp(-d2 * invR2)
                             rhoi += w
-                            rho[j] += w
+                            if mine:
+                                acc[b2 if many else j] += w
                         if d2 < rn2:
-                            if m_near + m_far >= cap:
-                                return -1, -1
-                            pi[m_near] = i
-                            pj[m_near] = j
+                            if m_near + m_far < size:
+                                pi[lo + m_near] = i
+                                pj[lo + m_near] = j
                             m_near += 1
                         elif d2 < rc2 and not with_density:
-                            if m_near + m_far >= cap:
-                                return -1, -1
                             m_far += 1
-                            pi[cap - m_far] = i
-                            pj[cap - m_far] = j
+                            if m_near + m_far <= size:
+                                pi[lo + size - m_far] = i
+                                pj[lo + size - m_far] = j
                     if with_density:
-                        rho[i] += rhoi
-    return m_near, m_far
+                        acc[a if many else i] += rhoi
+        counts[b, 0] = m_near
+        counts[b, 1] = m_far
+        counts[b, 2] = 1 if m_near + m_far > size else 0
+    # the blocks' pairs before each block, and the list's length
+    tot_near = 0
+    tot_far = 0
+    bad = False
+    for b in range(nblocks):
+        lay[b, 1] = tot_near
+        lay[b, 2] = tot_far
+        tot_near += counts[b, 0]
+        tot_far += counts[b, 1]
+        bad = bad or counts[b, 2] != 0
+    lay[nblocks, 1] = tot_near
+    lay[nblocks, 2] = tot_far
+    if with_density and many:
+        for i in nb.prange(n):
+            rho[i] = racc[pos[i]]
+    if bad or tot_near + tot_far > cap:
+        return -1, -1
+    # move the shares together: the far pairs through a copy (they may lie where near ones
+    # go), the near ones forward in block order (each only ever moves towards the front)
+    if nblocks > 1:
+        far = np.empty((tot_far, 2), np.int64)
+        for bb in nb.prange(nblocks):
+            b = np.int64(bb)
+            hi = ((b + 1) * cap) // nblocks
+            for t in range(1, counts[b, 1] + 1):
+                far[lay[b, 2] + t - 1, 0] = pi[hi - t]
+                far[lay[b, 2] + t - 1, 1] = pj[hi - t]
+        for b in range(1, nblocks):
+            lo = (b * cap) // nblocks
+            dst = lay[b, 1]
+            for t in range(counts[b, 0]):
+                pi[dst + t] = pi[lo + t]
+                pj[dst + t] = pj[lo + t]
+        for t in nb.prange(tot_far):
+            pi[cap - 1 - t] = far[t, 0]
+            pj[cap - 1 - t] = far[t, 1]
+    # each block's halo: the pairs from the ny + 1 cells before its first one
+    for bb in nb.prange(nblocks):
+        b = np.int64(bb)
+        c0 = lay[b, 0]
+        hc = max(c0 - ny - 1, 0)
+        if hc >= c0:
+            lay[b, 3] = lay[b, 1]
+            lay[b, 4] = lay[b, 2]
+            continue
+        h = _block_of(lay, hc)
+        lay[b, 3] = lay[h, 1] + cloc[hc, 0]
+        lay[b, 4] = lay[h, 2] + cloc[hc, 1]
+    return tot_near, tot_far
+
+
+def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
+                with_density):
+    """All pairs closer than ``rc``, each once (i from the lower cell), split in two groups:
+    the *near* pairs (closer than ``rc_near``) fill ``pi``/``pj`` from the front, the *far*
+    ones from the back. Returns ``(n_near, n_far)``, or ``(-1, -1)`` if ``pi``/``pj`` are
+    too small (for the list, or for one thread's share of it). The cells must be at least
+    ``rc`` wide.
+
+    The pair forces only act within the near group (``rc_near`` = force cut-off + skin), so
+    the far group needs the density kernel alone. With ``with_density`` the Gaussian kernel
+    densities (cut-off ``rc_d``, self term included) at these positions go into ``rho`` on
+    the way, and the far pairs are not stored (``n_far = 0``).
+
+    The list is in the order of the serial search: cell by cell, in a cell stencil cell by
+    stencil cell (the cell itself, then (+1,-1), (+1,0), (+1,+1), (0,+1)), in it pedestrian
+    ``i`` by pedestrian (in the cell's order) and their partners ``j`` in cell order; the
+    far pairs in that order from the back. On numba's threads (:func:`list_pairs`), with the
+    same list and densities on any number.
+    """
+    lay, pos = pair_blocks(n, cell_start, cell_order, nx, ny, nb.get_num_threads())
+    return list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d,
+                      R, with_density, lay, pos)
 
 
 @nb.njit(cache=True)
@@ -145,71 +330,138 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
     since the list was built). Each pair's force is added to one pedestrian and subtracted
     from the other, so Newton's third law holds to round-off. With ``with_density`` false,
     ``rho`` is left as it is and only the near pairs are visited.
+
+    The serial loop over the list (one block of :func:`pair_accel_blocks`, which takes
+    the list's blocks from :func:`list_pairs` to give the same on threads).
     """
+    lay = np.zeros((2, 5), np.int64)
+    lay[1, 0] = 1
+    lay[1, 1] = n_near
+    lay[1, 2] = n_far
+    one_cell = np.array([0, n], np.int64)
+    pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, np.empty(0, np.int64), one_cell,
+                      rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e)
+
+
+@nb.njit(parallel=True, cache=True)
+def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f, rc_d, rad,
+                      A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e):
+    """:func:`pair_accel_list` on threads, over a list from :func:`list_pairs` (``lay``,
+    ``pos``, and the cells ``cell_start`` it was made from): block b starts its own
+    pedestrians' sums (F from 0, rho from the self term), goes through its halo's pairs
+    (adding their terms to its own pedestrians, the partners j), then through its own
+    pairs (adding to i, and to j if j is its own), the near ones and then, for the density,
+    the far ones, whose halo comes after its own (the serial loop visits the far group from
+    the back). Each sum is taken in the serial loop's order, on any number of threads."""
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
     invB = 1.0 / B
     inv_m = 1.0 / m
     rc_f2 = rc_f * rc_f
     rc_d2 = rc_d * rc_d
-    for i in range(n):
-        F[i, 0] = 0.0
-        F[i, 1] = 0.0
-    if with_density:
-        for i in range(n):
-            rho[i] = w0
-    for p in range(n_near):
-        i = pi[p]
-        j = pj[p]
-        dx = x[i, 0] - x[j, 0]
-        dy = x[i, 1] - x[j, 1]
-        d2 = dx * dx + dy * dy
-        if with_density and d2 < rc_d2:
-            w = w0 * math.exp(-d2 * invR2)
-            rho[i] += w
-            rho[j] += w
-        if d2 < rc_f2 and d2 > 0.0:
-            rij = rad[i] + rad[j]
-            sij = rs[i] + rs[j]
-            if lam < 1.0:  # the social repulsion weighted by each one's field of vision
-                d = math.sqrt(d2)
-                fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
-                                    rij, 0.0, invB, k, kappa, sij)
-                fs = A * math.exp((sij - d) * invB) / d
-                # cos of the angle between one's direction and the other: -n_ij e_i, n_ij e_j
-                ci = -(dx * e[i, 0] + dy * e[i, 1]) / d
-                cj = (dx * e[j, 0] + dy * e[j, 1]) / d
-                wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
-                wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
-                F[i, 0] += (fx + wi * fs * dx) * inv_m
-                F[i, 1] += (fy + wi * fs * dy) * inv_m
-                F[j, 0] -= (fx + wj * fs * dx) * inv_m
-                F[j, 1] -= (fy + wj * fs * dy) * inv_m
-                continue
-            fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
-                                rij, A, invB, k, kappa, sij)
-            fx *= inv_m
-            fy *= inv_m
-            F[i, 0] += fx
-            F[i, 1] += fy
-            F[j, 0] -= fx
-            F[j, 1] -= fy
-    if not with_density:
-        return
     cap = pi.shape[0]
-    for p in range(cap - n_far, cap):  # density only
-        i = pi[p]
-        j = pj[p]
-        dx = x[i, 0] - x[j, 0]
-        dy = x[i, 1] - x[j, 1]
-        d2 = dx * dx + dy * dy
-        if d2 < rc_d2:
-            w = w0 * math.exp(-d2 * invR2)
-            rho[i] += w
-            rho[j] += w
+    nblocks = lay.shape[0] - 1
+    # several blocks sum by place in the cell order (a block's own places are one stretch
+    # of memory), one into F and rho
+    many = nblocks > 1
+    Fp = np.empty((n, 2)) if many else F
+    rp = np.empty(n if with_density else 0) if many else rho
+    for bb in nb.prange(nblocks):
+        b = np.int64(bb)
+        a0 = cell_start[lay[b, 0]]
+        a1 = cell_start[lay[b + 1, 0]]
+        for a in range(a0, a1):  # (by place; one block: every row)
+            Fp[a, 0] = 0.0
+            Fp[a, 1] = 0.0
+            if with_density:
+                rp[a] = w0
+        first = lay[b, 1]  # (the halo's pairs come before)
+        for p in range(lay[b, 3], lay[b + 1, 1]):
+            i = pi[p]
+            j = pj[p]
+            own_i = p >= first
+            aj = pos[j] if many else j
+            own_j = not many or (aj >= a0 and aj < a1)
+            if not own_j and not own_i:
+                continue
+            ai = pos[i] if many else i
+            dx = x[i, 0] - x[j, 0]
+            dy = x[i, 1] - x[j, 1]
+            d2 = dx * dx + dy * dy
+            if with_density and d2 < rc_d2:
+                w = w0 * math.exp(-d2 * invR2)
+                if own_i:
+                    rp[ai] += w
+                if own_j:
+                    rp[aj] += w
+            if d2 < rc_f2 and d2 > 0.0:
+                rij = rad[i] + rad[j]
+                sij = rs[i] + rs[j]
+                if lam < 1.0:  # the social repulsion weighted by each one's field of vision
+                    d = math.sqrt(d2)
+                    fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
+                                        rij, 0.0, invB, k, kappa, sij)
+                    fs = A * math.exp((sij - d) * invB) / d
+                    # cos of the angle between one's direction and the other: -n_ij e_i,
+                    # n_ij e_j
+                    ci = -(dx * e[i, 0] + dy * e[i, 1]) / d
+                    cj = (dx * e[j, 0] + dy * e[j, 1]) / d
+                    wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
+                    wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
+                    if own_i:
+                        Fp[ai, 0] += (fx + wi * fs * dx) * inv_m
+                        Fp[ai, 1] += (fy + wi * fs * dy) * inv_m
+                    if own_j:
+                        Fp[aj, 0] -= (fx + wj * fs * dx) * inv_m
+                        Fp[aj, 1] -= (fy + wj * fs * dy) * inv_m
+                    continue
+                fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0],
+                                    v[j, 1] - v[i, 1], rij, A, invB, k, kappa, sij)
+                fx *= inv_m
+                fy *= inv_m
+                if own_i:
+                    Fp[ai, 0] += fx
+                    Fp[ai, 1] += fy
+                if own_j:
+                    Fp[aj, 0] -= fx
+                    Fp[aj, 1] -= fy
+        if not with_density:
+            continue
+        # the far group from the back: this block's own pairs, then its halo's
+        last = cap - lay[b, 2]  # (the halo's pairs come after)
+        for p in range(cap - lay[b + 1, 2], cap - lay[b, 4]):
+            i = pi[p]
+            j = pj[p]
+            own_i = p < last
+            aj = pos[j] if many else j
+            own_j = not many or (aj >= a0 and aj < a1)
+            if not own_j and not own_i:
+                continue
+            dx = x[i, 0] - x[j, 0]
+            dy = x[i, 1] - x[j, 1]
+            d2 = dx * dx + dy * dy
+            if d2 < rc_d2:
+                w = w0 * math.exp(-d2 * invR2)
+                if own_i:
+                    rp[pos[i] if many else i] += w
+                if own_j:
+                    rp[aj] += w
+    if not many:
+        return
+    for i in nb.prange(n):
+        F[i, 0] = Fp[pos[i], 0]
+        F[i, 1] = Fp[pos[i], 1]
+        if with_density:
+            rho[i] = rp[pos[i]]
 
 
 # ------------------------------------------------------------------ space requirement
+@nb.njit(cache=True, inline="always")
+def _social_radius(rad_i, ue_i, shrink, h, crowd, cf_i):
+    s = rad_i - (shrink * cf_i if crowd else shrink) + h * ue_i
+    return s if s < rad_i else rad_i
+
+
 @nb.njit(cache=True)
 def social_radii(n, rad, ue, shrink, t_space, crowd, cf, rs):
     """The social radii [m] of the speed-dependent space requirement into ``rs``:
@@ -225,8 +477,7 @@ def social_radii(n, rad, ue, shrink, t_space, crowd, cf, rs):
     (crowding factor 0) keeps their space, a crowding one (1) gives up ``shrink``."""
     h = 0.5 * t_space
     for i in range(n):
-        s = rad[i] - (shrink * cf[i] if crowd else shrink) + h * ue[i]
-        rs[i] = s if s < rad[i] else rad[i]
+        rs[i] = _social_radius(rad[i], ue[i], shrink, h, crowd, cf[i])
 
 
 @nb.njit(cache=True, inline="always")
@@ -240,20 +491,21 @@ def crowd_density(rho, c, knee, stretch):
     return knee + (rho - knee) / (1.0 + c * (stretch - 1.0))
 
 
+@nb.njit(cache=True, inline="always")
+def _desired_speed(u0_i, law, rho_i, const_speed, crowd, cf_i, knee, stretch):
+    if const_speed >= 0.0:
+        return const_speed
+    if crowd:
+        return u0_i * shape(law, crowd_density(rho_i, cf_i, knee, stretch))
+    return u0_i * shape(law, rho_i)
+
+
 @nb.njit(cache=True)
 def desired_speeds(n, u0, law, rho, const_speed, crowd, cf, knee, stretch, ue):
     """Desired speeds [m/s] into ``ue``: ``u0[i] g(rho[i])`` (the density read through
     :func:`crowd_density` if ``crowd``), or ``const_speed`` if that is >= 0."""
     for i in range(n):
-        if const_speed >= 0.0:
-            ue[i] = const_speed
-        elif crowd:
-            ue[i] = u0[i] * shape(law, crowd_density(rho[i], cf[i], knee, stretch))
-        else:
-            ue[i] = u0[i] * shape(law, rho[i])
-
-
-# ------------------------------------------------------------------ walls
+        ue[i] = _desired_speed(u0[i], law, rho[i], const_speed, crowd, cf[i], knee, stretch)
 @nb.njit(cache=True, inline="always")
 def _proj(px, py, ax, ay, bx, by):
     dx = bx - ax
@@ -293,7 +545,35 @@ def wall_contact(px, py, s, piece, next_seg):
     return False, 0.0, 0.0
 
 
-@nb.njit(cache=True)
+
+@nb.njit(cache=True, inline="always")
+def _wall_one(i, x, v, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr, cell_seg, rc2,
+              rad, A, invB, k, kappa, inv_m, F, rs):
+    """Add pedestrian i's wall accelerations to ``F[i]``, segment by segment."""
+    px = x[i, 0]
+    py = x[i, 1]
+    ci = min(max(int((px - x0) * inv_cell), 0), gnx - 1)
+    cj = min(max(int((py - y0) * inv_cell), 0), gny - 1)
+    c = ci * gny + cj
+    for a in range(cell_ptr[c], cell_ptr[c + 1]):
+        s = cell_seg[a]
+        owns, qx, qy = wall_contact(px, py, s, piece, next_seg)
+        if not owns:
+            continue
+        dx = px - qx
+        dy = py - qy
+        d2 = dx * dx + dy * dy
+        if d2 >= rc2 or d2 == 0.0:
+            continue
+        # the pair force with a resting partner of radius 0 at the contact point q:
+        # friction against the wall is -kappa (r_i - d) <v_i, t> t
+        fx, fy = pair_force(dx, dy, math.sqrt(d2), -v[i, 0], -v[i, 1], rad[i], A, invB,
+                            k, kappa, rs[i])
+        F[i, 0] += fx * inv_m
+        F[i, 1] += fy * inv_m
+
+
+@nb.njit(parallel=True, cache=True)
 def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
                cell_seg, rc_w, rad, A, B, k, kappa, m, F, rs):
     """Add the wall accelerations of every pedestrian to ``F`` (cut-off ``rc_w`` [m]; body
@@ -301,28 +581,9 @@ def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
     rc2 = rc_w * rc_w
     invB = 1.0 / B
     inv_m = 1.0 / m
-    for i in range(n):
-        px = x[i, 0]
-        py = x[i, 1]
-        ci = min(max(int((px - x0) * inv_cell), 0), gnx - 1)
-        cj = min(max(int((py - y0) * inv_cell), 0), gny - 1)
-        c = ci * gny + cj
-        for a in range(cell_ptr[c], cell_ptr[c + 1]):
-            s = cell_seg[a]
-            owns, qx, qy = wall_contact(px, py, s, piece, next_seg)
-            if not owns:
-                continue
-            dx = px - qx
-            dy = py - qy
-            d2 = dx * dx + dy * dy
-            if d2 >= rc2 or d2 == 0.0:
-                continue
-            # the pair force with a resting partner of radius 0 at the contact point q:
-            # friction against the wall is -kappa (r_i - d) <v_i, t> t
-            fx, fy = pair_force(dx, dy, math.sqrt(d2), -v[i, 0], -v[i, 1], rad[i], A, invB,
-                                k, kappa, rs[i])
-            F[i, 0] += fx * inv_m
-            F[i, 1] += fy * inv_m
+    for i in nb.prange(n):
+        _wall_one(i, x, v, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr, cell_seg,
+                  rc2, rad, A, invB, k, kappa, inv_m, F, rs)
 
 
 # ------------------------------------------------------------------ tracing in the mesh
@@ -372,34 +633,40 @@ def trace(points, triangles, nbr, t0, ax, ay, bx, by):
     return t, -2, 0.0
 
 
-@nb.njit(cache=True)
+
+@nb.njit(cache=True, inline="always")
+def _follow_one(i, points, triangles, nbr, tri, x, P):
+    t0 = tri[i]
+    if _inside_packed(P, t0, x[i, 0], x[i, 1], INSIDE_MARGIN):
+        return
+    b0, b1, b2 = _bary(points, triangles, t0, x[i, 0], x[i, 1])
+    if b0 >= -1e-12 and b1 >= -1e-12 and b2 >= -1e-12:
+        return  # still in the same triangle (the common case)
+    # walk from the current triangle's centroid so the walk is well defined
+    a, b, c = triangles[t0, 0], triangles[t0, 1], triangles[t0, 2]
+    cx = (points[a, 0] + points[b, 0] + points[c, 0]) / 3.0
+    cy = (points[a, 1] + points[b, 1] + points[c, 1]) / 3.0
+    t, e, s = trace(points, triangles, nbr, t0, cx, cy, x[i, 0], x[i, 1])
+    tri[i] = t
+
+
+@nb.njit(parallel=True, cache=True)
 def follow(points, triangles, nbr, tri, x, n, P):
     """Update the triangle of every pedestrian by walking from its previous triangle.
     A pedestrian (temporarily) outside the mesh keeps the last triangle it was in. ``P`` is
     a packed direction table (:func:`~pedmesh.eikonal.direction._pack`); its affine maps
     settle the common case, a pedestrian well inside its triangle, without a division."""
-    for i in range(n):
-        t0 = tri[i]
-        if _inside_packed(P, t0, x[i, 0], x[i, 1], INSIDE_MARGIN):
-            continue
-        b0, b1, b2 = _bary(points, triangles, t0, x[i, 0], x[i, 1])
-        if b0 >= -1e-12 and b1 >= -1e-12 and b2 >= -1e-12:
-            continue  # still in the same triangle (the common case)
-        # walk from the current triangle's centroid so the walk is well defined
-        a, b, c = triangles[t0, 0], triangles[t0, 1], triangles[t0, 2]
-        cx = (points[a, 0] + points[b, 0] + points[c, 0]) / 3.0
-        cy = (points[a, 1] + points[b, 1] + points[c, 1]) / 3.0
-        t, e, s = trace(points, triangles, nbr, t0, cx, cy, x[i, 0], x[i, 1])
-        tri[i] = t
+    for i in nb.prange(n):
+        _follow_one(i, points, triangles, nbr, tri, x, P)
 
 
 # ------------------------------------------------------------------ one SSP-RK3 step
-@nb.njit(cache=True)
+@nb.njit(parallel=True, cache=True)
 def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
           const_u, use_const, F, rho, e, with_density, toff, tbuf, space, rs, wmap, wgeo,
-          cf, ue, hinge):
+          cf, ue, lay, pos, cell_start, hinge):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
     desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
     else as they are). Per pedestrian i: body radius ``rad[i]`` [m], free speed ``u0[i]``
@@ -413,47 +680,127 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     ``space[3]``, ``space[4]``: the crowding stretch and knee [ped/m^2] of
     :func:`crowd_density` (stretch 1: off), with the free-width map ``wmap`` and ``wgeo`` =
     (x0, y0, 1/cell, queue width, crowd width) (:mod:`pedmesh.models.sfm.crowding`; work arrays
-    ``cf``, ``ue``). ``hinge``: the pairs across a building's stair edges (indices,
-    shifts and their number; :mod:`pedmesh.models.sfm.hinge_kernels`; none in a room)."""
+    ``cf``, ``ue``). ``lay``, ``pos``, ``cell_start``: the blocks of the pair list and the
+    cells it was made from (:func:`list_pairs`). ``hinge``: the pairs across a
+    building's stair edges (indices, shifts and their number;
+    :mod:`pedmesh.models.sfm.hinge_kernels`; none in a room), added after the others.
+
+    Three parallel loops: over the pedestrians (crowding factors, social radii), over the
+    blocks of the pair list (:func:`pair_accel_blocks`), over the pedestrians (walls,
+    triangle, direction, desired speed and driving term, in the order the serial kernels
+    added them).
+    """
     crowd = space[3] > 1.0
-    if crowd:
-        crowd_factors(x, n, wmap, wgeo[0], wgeo[1], wgeo[2], wgeo[3], wgeo[4], cf)
     soc = rad
     # the desired speeds of the space requirement serve the driving term too, unless the
     # densities are evaluated again below
     have_ue = space[0] > 0.0 and not with_density
-    if space[0] > 0.0:
-        cs = math.sqrt(const_u[0] * const_u[0] + const_u[1] * const_u[1]) if use_const else -1.0
-        desired_speeds(n, u0, law, rho, cs, crowd, cf, space[4], space[3], ue)
-        social_radii(n, rad, ue, space[0], space[1], crowd, cf, rs)
-        soc = rs
-    pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m,
-                    R, F, rho, with_density, soc, space[2], e)
-    hi, hj, hs, nh = hinge
-    if nh > 0:
-        hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
-                    with_density, soc, space[2], e)
-    wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-               rc_w, rad, A, B, k, kappa, m, F, soc)
-    inv_tau = 1.0 / tau
+    cs = -1.0
     if use_const:
-        for i in range(n):
-            F[i, 0] += (const_u[0] - v[i, 0]) * inv_tau
-            F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
-        return
-    follow(points, triangles, nbr, tri, x, n, dpack)
-    for i in range(n):
-        tbuf[i] = tri[i] + toff[i] if tri[i] >= 0 else -1
-    _interpolate(dpack, tbuf[:n], x[:n], e)
-    if not have_ue:
-        desired_speeds(n, u0, law, rho, -1.0, crowd, cf, space[4], space[3], ue)
-    for i in range(n):
-        F[i, 0] += (ue[i] * e[i, 0] - v[i, 0]) * inv_tau
-        F[i, 1] += (ue[i] * e[i, 1] - v[i, 1]) * inv_tau
+        cs = math.sqrt(const_u[0] * const_u[0] + const_u[1] * const_u[1])
+    if crowd or space[0] > 0.0:
+        h = 0.5 * space[1]
+        span = wgeo[4] - wgeo[3]
+        for i in nb.prange(n):
+            if crowd:
+                cf[i] = crowd_factor_at(x[i, 0], x[i, 1], wmap, wgeo[0], wgeo[1], wgeo[2],
+                                        wgeo[3], span)
+            if space[0] > 0.0:
+                ue[i] = _desired_speed(u0[i], law, rho[i], cs, crowd, cf[i], space[4],
+                                       space[3])
+                rs[i] = _social_radius(rad[i], ue[i], space[0], h, crowd, cf[i])
+    if space[0] > 0.0:
+        soc = rs
+    pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f, rc_d, rad,
+                      A, B, k, kappa, m, R, F, rho, with_density, soc, space[2], e)
+    hi_, hj_, hs_, nh = hinge
+    if nh > 0:
+        hinge_accel(x, v, nh, hi_, hj_, hs_, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
+                    with_density, soc, space[2], e)
+    rc2 = rc_w * rc_w
+    invB = 1.0 / B
+    inv_m = 1.0 / m
+    inv_tau = 1.0 / tau
+    # chunks of pedestrians, each with one call of the direction interpolation
+    nch = (n + CHUNK - 1) // CHUNK
+    for ch in nb.prange(nch):
+        lo = ch * CHUNK
+        hi = min(lo + CHUNK, n)
+        for i in range(lo, hi):
+            _wall_one(i, x, v, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc2,
+                      rad, A, invB, k, kappa, inv_m, F, soc)
+            if use_const:
+                F[i, 0] += (const_u[0] - v[i, 0]) * inv_tau
+                F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
+            else:
+                _follow_one(i, points, triangles, nbr, tri, x, dpack)
+                tbuf[i] = tri[i] + toff[i] if tri[i] >= 0 else -1
+        if use_const:
+            continue
+        _interpolate(dpack, tbuf[lo:hi], x[lo:hi], e[lo:hi])
+        for i in range(lo, hi):
+            if not have_ue:
+                ue[i] = _desired_speed(u0[i], law, rho[i], -1.0, crowd, cf[i], space[4],
+                                       space[3])
+            F[i, 0] += (ue[i] * e[i, 0] - v[i, 0]) * inv_tau
+            F[i, 1] += (ue[i] * e[i, 1] - v[i, 1]) * inv_tau
 
 
 # ------------------------------------------------------------------ exits and reflection
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
+def _settle_one(i, x_old, x, v, tri, points, triangles, nbr, tri_edges, edge_kind, edge_owner,
+                edge_normals, exit_of, exit_frac, P):
+    """:func:`settle` for pedestrian i; returns its number of reflections."""
+    n_reflect = 0
+    exit_of[i] = -1
+    if _inside_packed(P, tri[i], x[i, 0], x[i, 1], INSIDE_MARGIN):
+        return 0
+    ax, ay = x_old[i, 0], x_old[i, 1]
+    bx, by = x[i, 0], x[i, 1]
+    t = tri[i]
+    s_total = 0.0
+    for bounce in range(8):
+        t, le, s = trace(points, triangles, nbr, t, ax, ay, bx, by)
+        if le == -1:
+            break
+        if le == -2:  # walk failed (should not happen): stay where it was
+            bx, by = x_old[i, 0], x_old[i, 1]
+            t = tri[i]
+            break
+        ed = tri_edges[t, le]
+        if edge_kind[ed] == EXIT_KIND:
+            exit_of[i] = edge_owner[ed]
+            exit_frac[i] = s_total + (1.0 - s_total) * s
+            # a leaver ends on the exit, at the point where it crossed
+            bx = ax + s * (bx - ax)
+            by = ay + s * (by - ay)
+            break
+        # reflect the remaining displacement and the velocity about the wall line
+        nx_, ny_ = edge_normals[ed, 0], edge_normals[ed, 1]
+        qx = ax + s * (bx - ax)
+        qy = ay + s * (by - ay)
+        dn = (bx - qx) * nx_ + (by - qy) * ny_
+        bx -= 2.0 * dn * nx_
+        by -= 2.0 * dn * ny_
+        vn = v[i, 0] * nx_ + v[i, 1] * ny_
+        if vn > 0.0:
+            v[i, 0] -= 2.0 * vn * nx_
+            v[i, 1] -= 2.0 * vn * ny_
+        # continue from just inside the crossing point
+        ax = qx - 1e-9 * nx_
+        ay = qy - 1e-9 * ny_
+        s_total = s_total + (1.0 - s_total) * s
+        n_reflect += 1
+        if bounce == 7:  # a corner trap: stay where it was
+            bx, by = x_old[i, 0], x_old[i, 1]
+            t = tri[i]
+    x[i, 0] = bx
+    x[i, 1] = by
+    tri[i] = t
+    return n_reflect
+
+
+@nb.njit(parallel=True, cache=True, nogil=True)
 def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, edge_owner,
            edge_normals, exit_of, exit_frac, P):
     """After a step: remove pedestrians whose step crossed an exit, reflect those whose step
@@ -466,64 +813,21 @@ def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, ed
     table ``P``) crosses nothing and is left as it is.
     """
     n_reflect = 0
-    for i in range(n):
-        exit_of[i] = -1
-        if _inside_packed(P, tri[i], x[i, 0], x[i, 1], INSIDE_MARGIN):
-            continue
-        ax, ay = x_old[i, 0], x_old[i, 1]
-        bx, by = x[i, 0], x[i, 1]
-        t = tri[i]
-        s_total = 0.0
-        for bounce in range(8):
-            t, le, s = trace(points, triangles, nbr, t, ax, ay, bx, by)
-            if le == -1:
-                break
-            if le == -2:  # walk failed (should not happen): stay where it was
-                bx, by = x_old[i, 0], x_old[i, 1]
-                t = tri[i]
-                break
-            ed = tri_edges[t, le]
-            if edge_kind[ed] == EXIT_KIND:
-                exit_of[i] = edge_owner[ed]
-                exit_frac[i] = s_total + (1.0 - s_total) * s
-                # a leaver ends on the exit, at the point where it crossed
-                bx = ax + s * (bx - ax)
-                by = ay + s * (by - ay)
-                break
-            # reflect the remaining displacement and the velocity about the wall line
-            nx_, ny_ = edge_normals[ed, 0], edge_normals[ed, 1]
-            qx = ax + s * (bx - ax)
-            qy = ay + s * (by - ay)
-            dn = (bx - qx) * nx_ + (by - qy) * ny_
-            bx -= 2.0 * dn * nx_
-            by -= 2.0 * dn * ny_
-            vn = v[i, 0] * nx_ + v[i, 1] * ny_
-            if vn > 0.0:
-                v[i, 0] -= 2.0 * vn * nx_
-                v[i, 1] -= 2.0 * vn * ny_
-            # continue from just inside the crossing point
-            ax = qx - 1e-9 * nx_
-            ay = qy - 1e-9 * ny_
-            s_total = s_total + (1.0 - s_total) * s
-            n_reflect += 1
-            if bounce == 7:  # a corner trap: stay where it was
-                bx, by = x_old[i, 0], x_old[i, 1]
-                t = tri[i]
-        x[i, 0] = bx
-        x[i, 1] = by
-        tri[i] = t
+    for i in nb.prange(n):
+        n_reflect += _settle_one(i, x_old, x, v, tri, points, triangles, nbr, tri_edges,
+                                 edge_kind, edge_owner, edge_normals, exit_of, exit_frac, P)
     return n_reflect
 
 
 # ------------------------------------------------------------------ densities on the mesh
-@nb.njit(cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R, rc_d, out):
     """Gaussian kernel density (eq3, eq4) of the pedestrians at points ``q`` [ped/m^2]."""
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
     rc2 = rc_d * rc_d
     reach = int(rc_d * cinv) + 1
-    for p in range(nq):
+    for p in nb.prange(nq):
         px, py = q[p, 0], q[p, 1]
         ci = int((px - cx0) * cinv)
         cj = int((py - cy0) * cinv)
@@ -541,13 +845,13 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
         out[p] = acc
 
 
-@nb.njit(cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
              const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages,
-             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge):
+             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge, nblocks=1):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
@@ -557,14 +861,19 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     list and reused by the three stages (the list is rebuilt for a stage in the rare case
     that someone moved more than skin/2 since). Returns the number of listed pairs, or -1 if
     ``pi``/``pj`` are too small (the caller enlarges them and repeats the step).
+
+    The pair work is split into ``nblocks`` blocks of cells (:func:`pair_blocks`; one per
+    thread, the caller's ``numba.get_num_threads()``); the result is the same for any.
+    ``hinge``: the pairs across a building's stair edges (:func:`accel`).
     """
     every = density_stages == 3
     # with the density held over the step it is computed while listing the pairs, and the
     # list needs the near pairs only (those within the force cut-off plus the skin)
     rc_list = max(rc_f + skin, rc_d + skin) if every else rc_f + skin
     build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
-    n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,
-                                pi, pj, rho, rc_d, R, not every)
+    lay, pos = pair_blocks(n, cell_start, cell_order, cnx, cny, nblocks)
+    n_near, n_far = list_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,
+                               pi, pj, rho, rc_d, R, not every, lay, pos)
     if n_near < 0:
         return -1
     if hinge[3] > 0 and not every:  # the densities across a building's stair edges
@@ -573,39 +882,39 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue, hinge)
-    for i in range(n):
+          wgeo, cf, ue, lay, pos, cell_start, hinge)
+    for i in nb.prange(n):
         rho_out[i] = rho[i]
         for d in range(2):
             xs[i, d] = x[i, d] + dt * v[i, d]
             vs[i, d] = v[i, d] + dt * F[i, d]
     # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
-    n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
-                                            cinv, cnx, cny, rc_f, rc_d, R, pi, pj, rho, n_near,
-                                            n_far, False)
+    n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
+        x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
+        rho, n_near, n_far, False, lay, pos)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue, hinge)
-    for i in range(n):
+          wgeo, cf, ue, lay, pos, cell_start, hinge)
+    for i in nb.prange(n):
         for d in range(2):
             x1 = xs[i, d]
             v1 = vs[i, d]
             xs[i, d] = 0.75 * x[i, d] + 0.25 * (x1 + dt * v1)
             vs[i, d] = 0.75 * v[i, d] + 0.25 * (v1 + dt * F[i, d])
     # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2)); a list rebuilt for stage 2 has no skin
-    n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
-                                            cinv, cnx, cny, rc_f, rc_d, R, pi, pj, rho, n_near,
-                                            n_far, rebuilt)
+    n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
+        x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
+        rho, n_near, n_far, rebuilt, lay, pos)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue, hinge)
-    for i in range(n):
+          wgeo, cf, ue, lay, pos, cell_start, hinge)
+    for i in nb.prange(n):
         for d in range(2):
             x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])
             v[i, d] = v[i, d] / 3.0 + 2.0 / 3.0 * (vs[i, d] + dt * F[i, d])
@@ -614,20 +923,23 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
 
 @nb.njit(cache=True)
 def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d,
-                   R, pi, pj, rho, n_near, n_far, force):
-    """Keep the pair list (built with skin at ``x0``) if nobody moved more than skin/2 since,
-    else (or if ``force``) rebuild it for the positions ``x`` without skin, valid for this
-    stage only. Returns ``(n_near, n_far, rebuilt)``."""
+                   R, pi, pj, rho, n_near, n_far, force, lay, pos):
+    """Keep the pair list (built with skin at ``x0``; its blocks ``lay``, ``pos``) if
+    nobody moved more than skin/2 since, else (or if ``force``) rebuild it for the positions
+    ``x`` without skin, valid for this stage only. Returns ``(n_near, n_far, rebuilt, lay,
+    pos)``."""
     lim = 0.25 * skin * skin
     for i in range(n):
         dx = x[i, 0] - x0[i, 0]
         dy = x[i, 1] - x0[i, 1]
         if force or dx * dx + dy * dy > lim:
             build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
-            n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny,
-                                        max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False)
-            return n_near, n_far, True
-    return n_near, n_far, False
+            lay, pos = pair_blocks(n, cell_start, cell_order, cnx, cny, lay.shape[0] - 1)
+            n_near, n_far = list_pairs(x, n, cell_start, cell_order, cnx, cny,
+                                       max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False, lay,
+                                       pos)
+            return n_near, n_far, True, lay, pos
+    return n_near, n_far, False, lay, pos
 
 
 @nb.njit(cache=True)

@@ -96,6 +96,7 @@ class SFMNumerics:
     output_interval: float = P.field("output_interval")
     sample_interval: float = P.field("sample_interval")
     overlap_tolerance: float = P.field("overlap_tolerance")
+    threads: int | None = P.field("threads")
 
     def __post_init__(self) -> None:
         P.check_fields(self)

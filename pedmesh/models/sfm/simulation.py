@@ -27,6 +27,7 @@ from __future__ import annotations
 import math
 import time
 from collections import deque
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -37,8 +38,19 @@ from ...mesh.triangle_mesh import TriMesh
 from .params import SFMNumerics, SocialForceParams
 from .walls import WallSet
 
-__all__ = ["Simulation", "PAIR_SKIN"]
+__all__ = ["Simulation", "PAIR_SKIN", "PARALLEL_MIN_PEOPLE", "PARALLEL_MIN_PEOPLE_TBB"]
 
+#: crowds smaller than this take their steps on one thread (with ``threads`` None) under
+#: numba's OpenMP or workqueue threading layer, whose threads cost more to start and, on
+#: busy cores, wait for each other (see :data:`pedmesh.models.continuum.solver.
+#: PARALLEL_MIN_CELLS`); the steps give the same results on any number of threads
+PARALLEL_MIN_PEOPLE = 5_000
+#: the same under numba's TBB threading layer. A step launches about 20 parallel loops;
+#: measured on 2 cores, a launch costs 1-1.5 us under TBB, and a step of 2,400 people
+#: (Example 2) 0.8-1.3 ms on one thread: from about 1,000 people the launches cost a few
+#: per cent of a step. (Not a measured break-even: the shared development machine gave
+#: the second thread too little of a core to measure one.)
+PARALLEL_MIN_PEOPLE_TBB = 1_000
 #: Verlet skin [m] of the per-step pair list (rebuilt within a step if anyone moves more
 #: than half of it)
 PAIR_SKIN = 0.2
@@ -472,9 +484,11 @@ class Simulation:
         out = np.zeros(len(q))
         if self.n == 0:
             return out
-        self._build_cells()
-        K.density_at(q, len(q), self.x, self.n, self._cell_start, self._cell_order, self._cx0,
-                     self._cy0, self._cinv, self._cnx, self._cny, self.params.R, self.rc_d, out)
+        with self._on_threads(self.n):
+            self._build_cells()
+            K.density_at(q, len(q), self.x, self.n, self._cell_start, self._cell_order,
+                         self._cx0, self._cy0, self._cinv, self._cnx, self._cny, self.params.R,
+                         self.rc_d, out)
         return out
 
     def _route(self) -> None:
@@ -500,7 +514,29 @@ class Simulation:
         self.timers.routing += time.perf_counter() - t0
 
     # ------------------------------------------------------------------ stepping
+    def threads_for(self, n: int) -> int:
+        """The threads a step of ``n`` pedestrians runs its kernels on: ``numerics.threads``
+        if set (at most numba's ``NUMBA_NUM_THREADS``), else numba's current count for a
+        crowd of at least :data:`PARALLEL_MIN_PEOPLE_TBB` under TBB
+        (:data:`PARALLEL_MIN_PEOPLE` under another threading layer), else 1."""
+        import numba
+
+        wanted = self.numerics.threads
+        if wanted is not None:
+            return max(1, min(int(wanted), numba.config.NUMBA_NUM_THREADS))
+        most = numba.get_num_threads()
+        if most <= 1:
+            return 1
+        try:
+            layer = numba.threading_layer()
+        except ValueError:  # no parallel loop has run yet
+            layer = "?"
+        least = PARALLEL_MIN_PEOPLE_TBB if layer == "tbb" else PARALLEL_MIN_PEOPLE
+        return most if n >= least else 1
+
     def _rk3(self, n: int, dt: float, tri_stage: np.ndarray) -> int:
+        import numba
+
         from . import kernels as K
 
         p, mesh, w = self.params, self.mesh, self.walls
@@ -514,11 +550,32 @@ class Simulation:
             self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
             self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
             self.toff, self._tbuf, self._space, self._rs, self._wmap, self._wgeo, self._cf,
-            self._ue, self._hinge_pairs,
+            self._ue, self._hinge_pairs, numba.get_num_threads(),
         )
 
     def step(self) -> int:
-        """Advance one time step; returns the number of pedestrians that left."""
+        """Advance one time step; returns the number of pedestrians that left. The kernels
+        run on :meth:`threads_for` threads (numba's count is set back afterwards); the
+        result is the same on any number."""
+        with self._on_threads(self.n):
+            return self._step()
+
+    @contextmanager
+    def _on_threads(self, n: int):
+        """numba's thread count set to :meth:`threads_for` ``n`` pedestrians, and back."""
+        import numba
+
+        threads = self.threads_for(n)
+        before = numba.get_num_threads()
+        if threads != before:
+            numba.set_num_threads(threads)
+        try:
+            yield threads
+        finally:
+            if threads != before:
+                numba.set_num_threads(before)
+
+    def _step(self) -> int:
         from . import kernels as K
 
         nm = self.numerics

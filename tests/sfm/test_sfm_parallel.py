@@ -1,0 +1,185 @@
+"""The social force model's kernels on threads give the serial kernels' results bit for bit
+(tests/sfm/serial_kernels.py, the loops before they ran on threads), for any number of
+blocks of cells (one per thread), and a run writes the same exits.csv and trajectories.txt
+on 1 and on 2 threads."""
+
+from __future__ import annotations
+
+import json
+
+import numba
+import numpy as np
+import pytest
+
+import serial_kernels as S  # (tests/sfm/serial_kernels.py)
+from pedmesh.cli import main
+from pedmesh.models.sfm import kernels as K
+from pedmesh.models.sfm import simulation as sim_module
+from pedmesh.models.sfm.params import SFMNumerics
+
+two_threads = pytest.mark.skipif(numba.config.NUMBA_NUM_THREADS < 2,
+                                 reason="numba has fewer than 2 threads here")
+
+ROOM = {
+    "format": "pedmesh-room", "version": 1, "name": "two_doors", "units": "m",
+    "outline": [[0.0, 0.0], [24.0, 0.0], [24.0, 12.0], [0.0, 12.0]],
+    "obstacles": [{"name": "pillar",
+                   "polygon": [[4.0, 5.0], [6.0, 5.0], [6.0, 7.0], [4.0, 7.0]]}],
+    "exits": [{"name": "east", "polyline": [[24.0, 4.5], [24.0, 6.0]]},
+              {"name": "north", "polyline": [[19.0, 12.0], [20.5, 12.0]]}],
+    "start_areas": [{"name": "crowd", "polygon": [[9.0, 0.5], [23.5, 0.5], [23.5, 11.5],
+                                                   [9.0, 11.5]], "spacing": 0.55}],
+}
+
+
+def _bits(a) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    return a.view(np.uint8) if a.dtype.kind == "f" else a
+
+
+def _same(a, b) -> bool:
+    return np.array_equal(_bits(a), _bits(b))
+
+
+def _crowd(seed: int, n: int = 900):
+    """A crowd with dense clumps and gaps on a 30 x 18 m grid of 2.1 m cells."""
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform([2, 2], [28, 16], (6, 2))
+    x = centres[rng.integers(0, 6, n)] + rng.normal(0, 1.6, (n, 2))
+    x = np.clip(x, 0.05, [29.95, 17.95])
+    v = rng.normal(0, 0.7, (n, 2))
+    rad = rng.uniform(0.2, 0.3, n)
+    e = rng.normal(0, 1, (n, 2))
+    e /= np.hypot(*e.T)[:, None]
+    cell = 2.1
+    nx, ny = int(30 / cell) + 1, int(18 / cell) + 1
+    start = np.zeros(nx * ny + 1, np.int64)
+    order = np.zeros(n, np.int64)
+    S.build_cells(x, n, 0.0, 0.0, 1.0 / cell, nx, ny, start, order)
+    return x, v, rad, e, nx, ny, start, order
+
+
+@pytest.mark.parametrize("with_density", [True, False])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_cells_and_pair_list_are_the_serial_ones(seed, with_density):
+    x, v, rad, e, nx, ny, start, order = _crowd(seed)
+    n = len(x)
+    start2, order2 = np.zeros_like(start), np.zeros_like(order)
+    K.build_cells(x, n, 0.0, 0.0, 1.0 / 2.1, nx, ny, start2, order2)
+    assert _same(start, start2) and _same(order, order2)
+    rc, rc_near = (1.4, 1.4) if with_density else (2.1, 1.4)
+    cap = 100 * n  # (each block gets cap / blocks of it)
+    pi0, pj0, rho0 = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
+    m0 = S.build_pairs(x, n, start, order, nx, ny, rc, rc_near, pi0, pj0, rho0, 2.1, 0.7,
+                       with_density)
+    assert m0[0] > 0 and (m0[1] > 0) != with_density
+    for nblocks in (1, 2, 3, 5, 8):
+        lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
+        pi, pj, rho = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
+        m = K.list_pairs(x, n, start, order, nx, ny, rc, rc_near, pi, pj, rho, 2.1, 0.7,
+                         with_density, lay, pos)
+        assert m == m0, nblocks
+        near, far = slice(0, m[0]), slice(cap - m[1], cap)
+        for a, b in ((pi, pi0), (pj, pj0)):
+            assert _same(a[near], b[near]) and _same(a[far], b[far]), nblocks
+        if with_density:
+            assert _same(rho, rho0), nblocks
+        if nblocks > 1:  # the halos and the blocks' first pairs mark real places
+            assert np.all(np.diff(lay[:, 1]) >= 0) and np.all(lay[:-1, 3] <= lay[:-1, 1])
+    # a list too long for pi/pj, or for a block's share of them: -1 (the caller enlarges)
+    for size, nblocks in ((m0[0] + m0[1] - 1, 1), (m0[0] + m0[1] + 1, 8)):
+        lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
+        assert K.list_pairs(x, n, start, order, nx, ny, rc, rc_near, np.empty(size, np.int64),
+                            np.empty(size, np.int64), np.zeros(n), 2.1, 0.7, with_density,
+                            lay, pos) == (-1, -1)
+
+
+@pytest.mark.parametrize("lam", [1.0, 0.4])
+@pytest.mark.parametrize("with_density", [True, False])
+def test_pair_forces_are_the_serial_ones(lam, with_density):
+    """F from 0 and rho from the self term, then every pair's terms in list order: near
+    pairs from the front, the far ones (density only) from the back; with the field of
+    vision the terms of i and j differ."""
+    x, v, rad, e, nx, ny, start, order = _crowd(2)
+    n = len(x)
+    rs = rad - 0.03
+    cap = 100 * n
+    pi, pj = np.full(cap, -1), np.full(cap, -1)
+    nn, nf = S.build_pairs(x, n, start, order, nx, ny, 2.1, 1.4, pi, pj, np.zeros(n), 2.1,
+                           0.7, False)
+    args = (1.2, 2.1, rad, 2000.0, 0.08, 1.2e5, 2.4e5, 80.0, 0.7)
+    F0, rho0 = np.full((n, 2), np.nan), np.full(n, 7.0)
+    S.pair_accel_list(x, v, n, pi, pj, nn, nf, *args, F0, rho0, with_density, rs, lam, e)
+    assert np.abs(F0).max() > 1.0
+    F1, rho1 = np.full((n, 2), np.nan), np.full(n, 7.0)
+    K.pair_accel_list(x, v, n, pi, pj, nn, nf, *args, F1, rho1, with_density, rs, lam, e)
+    assert _same(F1, F0) and _same(rho1, rho0)
+    for nblocks in (2, 3, 5, 8):
+        lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
+        pi2, pj2 = np.full(cap, -1), np.full(cap, -1)
+        assert K.list_pairs(x, n, start, order, nx, ny, 2.1, 1.4, pi2, pj2, np.zeros(n), 2.1,
+                            0.7, False, lay, pos) == (nn, nf)
+        F2, rho2 = np.full((n, 2), np.nan), np.full(n, 7.0)
+        K.pair_accel_blocks(x, v, n, pi2, pj2, nn, nf, lay, pos, start, *args, F2, rho2,
+                            with_density, rs, lam, e)
+        assert _same(F2, F0) and _same(rho2, rho0), nblocks
+
+
+def _room(tmp_path):
+    path = tmp_path / "two_doors.json"
+    path.write_text(json.dumps(ROOM))
+    return path
+
+
+def test_steps_are_the_serial_ones(tmp_path, monkeypatch):
+    """Whole steps (Runge-Kutta stages, walls, routes, settle) with the parallel kernels on
+    2 threads and with the serial kernels give the same states, bit for bit, with the
+    validated preset's dense-crowd terms and a field of vision."""
+    import pedmesh
+
+    def run(threads):
+        sim = pedmesh.build(_room(tmp_path), model="sfm", preset="validated",
+                            params={"vision": 0.5, "threads": threads}).sim
+        assert sim.n_initial > 300
+        for _ in range(150):
+            sim.step()
+        return sim
+
+    new = run(2)
+    for name in ("build_cells", "settle", "density_at", "first_bad"):
+        monkeypatch.setattr(K, name, getattr(S, name))
+    # (the serial kernels take neither the pairs over a building's stair edges, none in a
+    # room, nor the blocks)
+    monkeypatch.setattr(K, "rk3_step", lambda *args: S.rk3_step(*args[:-2]))
+    ref = run(1)
+    assert ref.n < ref.n_initial  # some left: the exits worked
+    for name in ("x", "v", "rho", "tri", "ids", "exit_time", "exit_id", "_e"):
+        assert _same(getattr(new, name), getattr(ref, name)), name
+
+
+@two_threads
+def test_run_files_are_the_same_on_one_and_two_threads(tmp_path):
+    room = _room(tmp_path)
+    files = {}
+    for threads in (1, 2):
+        out = tmp_path / f"t{threads}"
+        assert main(["run", str(room), "--model", "sfm", "--preset", "validated", "--param",
+                     f"threads={threads}", "--t-end", "12", "--out", str(out), "-q"]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["parameters"]["threads"] == threads
+        files[threads] = {f: (out / f).read_bytes() for f in ("exits.csv", "trajectories.txt")}
+    assert files[1]["exits.csv"].count(b"\n") > 10  # people left through the doors
+    assert files[1] == files[2]
+
+
+def test_threads_parameter_and_the_crowd_threshold(monkeypatch):
+    """``threads`` N: N threads (at most numba's); None: one thread below the crowd size
+    where threads pay, numba's count above."""
+    sim = sim_module.Simulation.__new__(sim_module.Simulation)
+    sim.numerics = SFMNumerics(threads=1)
+    assert sim.threads_for(10**6) == 1
+    sim.numerics = SFMNumerics(threads=10**3)
+    assert sim.threads_for(1) == numba.config.NUMBA_NUM_THREADS
+    sim.numerics = SFMNumerics()
+    assert sim.threads_for(10) == 1
+    assert sim.threads_for(10**6) == numba.get_num_threads()
