@@ -96,8 +96,9 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
 
 
 def _grid(mesh):
-    """A VTK unstructured grid of the mesh's triangles (z = 0; a building's in 3-D), built with VTK's own classes
-    (pyvista would add a quarter of a second of imports to every run)."""
+    """A VTK unstructured grid of the mesh's triangles (z = 0; a building's in 3-D), built
+    with VTK's own classes (pyvista would add a quarter of a second of imports to every
+    run)."""
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonCore import vtkPoints
     from vtkmodules.vtkCommonDataModel import VTK_TRIANGLE, vtkCellArray, vtkUnstructuredGrid

@@ -72,8 +72,8 @@ class SurfaceSimulation(Simulation):
                                  "arrivals are not available on buildings yet")
         self.atlas = atlas
         h = atlas.hinges
-        #: per exit of the open atlas: -1 for the building's exits, else the shift [m] of
-        #: its stair edge to the other side
+        #: per exit of the open atlas: whether it is a stair edge, the shift [m] that carries
+        #: a point over it, and the piece on its other side
         self._hinge_exit = np.zeros(len(atlas.open.exit_names), bool)
         self._hinge_exit[h[:, 0].astype(np.int64)] = True
         self._hinge_shift = np.zeros((len(atlas.open.exit_names), 2))
@@ -111,7 +111,8 @@ class SurfaceSimulation(Simulation):
 
     def _rk3(self, n: int, dt: float, tri_stage: np.ndarray) -> int:
         """The room's step, with the pairs across stair edges listed first (within the
-        force and density cut-offs plus the pair list's skin)."""
+        force and density cut-offs plus the pair list's skin; the list serves the step's
+        three stages, as the room's does unless someone moves more than half the skin)."""
         from .hinge_kernels import hinge_pairs
         from .simulation import PAIR_SKIN
 
