@@ -186,7 +186,8 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
 
 
 def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
-    """Where a stair edge ends on a wall, in the triangles of the end point's fan that do
+    """Where a stair edge ends on a wall that ends there too (:func:`_wall_ends`), in the
+    triangles of the end point's fan that do
     not touch the stair edge, the end point's direction is the wall's, the way the
     potential falls along it (towards the stair edge for those going onto it, away for
     those coming off it): a pedestrian who turns around the corner (the wall's end) is
@@ -206,9 +207,10 @@ def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
         touches = np.zeros(m.n_triangles, bool)
         he = b[hinge]
         touches[m.edge_triangles[he, 0]] = True
+        ends = _wall_ends(atlas)
         for k in np.flatnonzero(solid):
             for v, u in ((e[k, 0], e[k, 1]), (e[k, 1], e[k, 0])):
-                if not on_hinge[v]:
+                if not (on_hinge[v] and ends[v]):
                     continue
                 for t in idx[ptr[v]:ptr[v + 1]]:
                     if not touches[t]:
@@ -246,6 +248,34 @@ def _hinge_inner_vertices(atlas) -> np.ndarray:
     return cache["hinge_inner"]
 
 
+def _wall_ends(atlas) -> np.ndarray:
+    """(n,) bool over the atlas vertices: the points where a stair edge ends on a wall and
+    the wall ends too: the surface's angle about the point (both sides together) is
+    reflex, e.g. the end of the thin wall between a stair and the level beside its foot
+    (360 degrees). Where the walls of the two sides continue each other (180 degrees) or
+    meet in a corner, nothing is done."""
+    cache = atlas.steer._cache
+    if "wall_ends" not in cache:
+        m = atlas.open
+        b = m.boundary_edges
+        kind = m.edge_kind[b]
+        e = m.edges[b]
+        hinge = (kind == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)
+        solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
+        on_h = np.zeros(m.n_points, bool)
+        on_h[e[hinge].ravel()] = True
+        on_w = np.zeros(m.n_points, bool)
+        on_w[e[solid].ravel()] = True
+        ends = np.flatnonzero(on_h & on_w)
+        g = atlas.glued
+        total = np.zeros(m.n_points)
+        np.add.at(total, g.canon[g.triangles].ravel(), g.angles.ravel())
+        out = np.zeros(m.n_points, bool)
+        out[ends[total[g.canon[ends]] > np.pi + 0.1]] = True
+        cache["wall_ends"] = out
+    return cache["wall_ends"]
+
+
 #: [m] the radius of the discs about the ends of the walls beside a stair's ends, and the
 #: factor of the walking cost in them (:func:`_corner_costs`)
 CORNER_RADIUS = 0.5
@@ -254,22 +284,13 @@ CORNER_COST = 3.0
 
 def _corner_costs(atlas) -> np.ndarray:
     """(m,) 1, and :data:`CORNER_COST` in the triangles within :data:`CORNER_RADIUS` of a
-    point where a stair edge ends on a wall. There the wall between the stair and the
-    level beside it ends; the way from one to the other turns round that end, and a route
-    that grazes it steers a pedestrian (who has a body) straight into it. With the corners
-    dearer the routes keep their distance, as people do."""
+    point where a stair edge ends on a wall that ends there too (:func:`_wall_ends`), e.g.
+    the wall between a stair and the level beside its foot: the way from one to the other
+    turns round that end, and a route that grazes it steers a pedestrian (who has a body)
+    straight into it. With the corners dearer the routes keep their distance, as people
+    do."""
     s = atlas.surface
-    m = atlas.open
-    b = m.boundary_edges
-    kind = m.edge_kind[b]
-    e = m.edges[b]
-    hinge = (kind == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)
-    solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
-    on_h = np.zeros(m.n_points, bool)
-    on_h[e[hinge].ravel()] = True
-    on_w = np.zeros(m.n_points, bool)
-    on_w[e[solid].ravel()] = True
-    ends = np.unique(atlas.to_surface[np.flatnonzero(on_h & on_w)])
+    ends = np.unique(atlas.to_surface[np.flatnonzero(_wall_ends(atlas))])
     out = np.ones(s.n_triangles)
     if len(ends) == 0:
         return out
