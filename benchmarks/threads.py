@@ -236,7 +236,7 @@ def sfm_cases(args):
                 w.cell_ptr, w.cell_seg, sim.rc_f, sim.rc_d, sim.rc_w, sim.rad, p.A, p.B, p.k,
                 p.kappa, p.m, p.R, p.tau, sim._u_eff, sim._law, sim._const_u, sim._use_const, F,
                 rw, e, every, sim.toff, tbuf, sim._space, rs, sim._wmap, sim._wgeo, cf, ue, lay,
-                pos, start)
+                pos, start, sim._hinge_pairs)
 
     start3, order3, pi3, pj3 = start.copy(), order.copy(), pi.copy(), pj.copy()
 
@@ -249,7 +249,7 @@ def sfm_cases(args):
                    p.B, p.k, p.kappa, p.m, p.R, p.tau, sim._u_eff, sim._law, sim._const_u,
                    sim._use_const, xs, vs, F, rw, rho.copy(), e, pi3, pj3, PAIR_SKIN,
                    int(sim.numerics.density_stages), sim.toff, tbuf, sim._space, rs, sim._wmap,
-                   sim._wgeo, cf, ue, numba.get_num_threads())
+                   sim._wgeo, cf, ue, sim._hinge_pairs, numba.get_num_threads())
         listed["step"] = (xx, vv, tt)
 
     def settle():
