@@ -147,16 +147,6 @@ class Atlas:
         """The building's own exits (the first exits of :attr:`open`)."""
         return len(self.surface.exit_names)
 
-    @cached_property
-    def piece_of_vertex(self) -> np.ndarray:
-        """(n,) the piece of each atlas vertex."""
-        out = np.empty(self.open.n_points, np.int64)
-        start = 0
-        for k, p in enumerate(self.surface.pieces):
-            out[start:start + p.mesh.n_points] = k
-            start += p.mesh.n_points
-        return out
-
     def to_3d(self, xy: np.ndarray, piece: np.ndarray) -> np.ndarray:
         """3-D points (k, 3) [m] of atlas points ``xy`` (k, 2) on pieces ``piece`` (k,)."""
         xy = np.asarray(xy, float).reshape(-1, 2)
@@ -224,9 +214,11 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
                     howner.append(len(exit_names) + hinge_names.index(label))
                     continue
                 so = exit_names.index(name)
-            elif sk == BoundaryKind.OBSTACLE:
-                obstacles.append(f"{p.name}/{m.obstacle_names[so]}")
-                so = len(obstacles) - 1
+            elif sk == BoundaryKind.OBSTACLE:  # (one number per obstacle, not per side)
+                oname = f"{p.name}/{m.obstacle_names[so]}"
+                if oname not in obstacles:
+                    obstacles.append(oname)
+                so = obstacles.index(oname)
             seg.append(s)
             kind.append(sk)
             owner.append(so)

@@ -180,9 +180,11 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
                 if ename.startswith(HINGE_PREFIX):
                     continue  # a stair edge: interior once stitched
                 so = exit_names.index(ename)
-            elif sk == BoundaryKind.OBSTACLE:
-                obstacle_names.append(f"{name}/{m.obstacle_names[so]}")
-                so = len(obstacle_names) - 1
+            elif sk == BoundaryKind.OBSTACLE:  # (one number per obstacle, not per side)
+                oname = f"{name}/{m.obstacle_names[so]}"
+                if oname not in obstacle_names:
+                    obstacle_names.append(oname)
+                so = obstacle_names.index(oname)
             seg.append(m.segments[j] + offset)
             kind.append(sk)
             owner.append(so)

@@ -79,3 +79,21 @@ def test_the_shipped_office_building(geometries_dir, tmp_path, capsys):
     assert {"ground/floor", "fourth/floor", "west-0-1/stairs", "east-3-4/stairs"} <= names
     # glTF is y-up: the top floor's walls reach 14 m + 2.5 m
     assert math.isclose(scene.bounds[1][1], 16.5, rel_tol=1e-6)
+
+
+def test_obstacles_are_numbered_once_each(tmp_path):
+    """A level's pillar is one obstacle of the surface and of the atlas (not one per side)."""
+    from pedmesh.mesh.atlas import build_atlas
+    from pedmesh.mesh.triangle_mesh import BoundaryKind
+
+    data = json.loads(json.dumps(TWO))
+    data["levels"][0]["obstacles"] = [{"name": "pillar",
+                                       "polygon": [[4, 4], [5, 4], [5, 5], [4, 5]]}]
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps(data))
+    s = triangulate_building(pedmesh.load_room(p))
+    assert s.obstacle_names == ("ground/pillar",)
+    assert set(s.segment_owner[s.segment_kind == BoundaryKind.OBSTACLE]) == {0}
+    g = build_atlas(s).glued
+    assert g.obstacle_names == ("ground/pillar",)
+    assert set(g.edge_owner[g.edge_kind == BoundaryKind.OBSTACLE]) == {0}
