@@ -156,8 +156,8 @@ def atlas_direction_field(atlas, phi: np.ndarray) -> DirectionField:
 
 def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
     """On the side of a stair edge where the route comes in over it (the direction of the
-    triangle across it points over it, to this side), the edge steers like a wall: the component
-    of the direction into it is removed near it (as at a wall,
+    triangle across it points over it, to this side), the edge steers like a wall: the
+    component of the direction into it is removed near it (as at a wall,
     :func:`pedmesh.eikonal.direction._interpolate`), so that nobody is steered onto a
     stair against the way over it, e.g. while turning round the end of the wall beside
     its foot."""
@@ -178,8 +178,6 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
     n = m.edge_normals[he]  # out of the triangle's side, over the edge
     d = df.triangle_directions[across]
     inflow = np.sum(d * n, axis=1) < 0.0
-    #: the stair edges (edges of the open atlas) the route comes in over on their side
-    df.inflow_hinge_edges = he[inflow]
     P = df.packed
     P[t[inflow], 12 + 2 * loc[inflow]] = n[inflow, 0]
     P[t[inflow], 13 + 2 * loc[inflow]] = n[inflow, 1]
@@ -187,11 +185,11 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
 
 def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
     """Where a stair edge ends on a wall that ends there too (:func:`_wall_ends`), in the
-    triangles of the end point's fan that do
-    not touch the stair edge, the end point's direction is the wall's, the way the
-    potential falls along it (towards the stair edge for those going onto it, away for
-    those coming off it): a pedestrian who turns around the corner (the wall's end) is
-    steered along the wall, not into it (as at a door jamb, :mod:`pedmesh.eikonal.direction`)."""
+    triangles of the end point's fan that do not touch the stair edge, the end point's
+    direction is the wall's, the way the potential falls along it (towards the stair edge
+    for those going onto it, away for those coming off it): a pedestrian who turns round
+    the corner (the wall's end) is steered along the wall, not into it (as at a door jamb,
+    :mod:`pedmesh.eikonal.direction`)."""
     cache = atlas.steer._cache
     if "hinge_jambs" not in cache:
         m = atlas.open
