@@ -20,7 +20,6 @@ import numpy as np
 from ..errors import ParameterError
 from ..mesh.surface import SurfaceMesh
 from . import fmm_kernels as _fmm
-from ..mesh.triangle_mesh import BoundaryKind
 from .direction import DirectionField
 from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
                   _ray_samples)
@@ -164,8 +163,7 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
     m = atlas.open
     cache = atlas.steer._cache
     if "hinge_edges" not in cache:
-        b = m.boundary_edges
-        he = b[(m.edge_kind[b] == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)]
+        he = atlas.hinge_edges
         t = m.edge_triangles[he, 0]
         loc = np.argmax(m.triangle_edges[t] == he[:, None], axis=1)
         g = atlas.glued
@@ -193,22 +191,14 @@ def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
     cache = atlas.steer._cache
     if "hinge_jambs" not in cache:
         m = atlas.open
-        b = m.boundary_edges
-        kind = m.edge_kind[b]
-        e = m.edges[b]
-        hinge = (kind == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)
-        solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
-        on_hinge = np.zeros(m.n_points, bool)
-        on_hinge[e[hinge].ravel()] = True
         rows = []  # (triangle, local corner, jamb vertex, the wall's other vertex)
         ptr, idx = m.vertex_triangles
         touches = np.zeros(m.n_triangles, bool)
-        he = b[hinge]
-        touches[m.edge_triangles[he, 0]] = True
+        touches[m.edge_triangles[atlas.hinge_edges, 0]] = True
         ends = _wall_ends(atlas)
-        for k in np.flatnonzero(solid):
-            for v, u in ((e[k, 0], e[k, 1]), (e[k, 1], e[k, 0])):
-                if not (on_hinge[v] and ends[v]):
+        for a, c in m.edges[m.wall_edges()]:
+            for v, u in ((a, c), (c, a)):
+                if not ends[v]:
                     continue
                 for t in idx[ptr[v]:ptr[v + 1]]:
                     if not touches[t]:
@@ -232,17 +222,10 @@ def _hinge_inner_vertices(atlas) -> np.ndarray:
     """The atlas vertices on a stair edge that are not on a wall, an obstacle or an exit."""
     cache = atlas.steer._cache
     if "hinge_inner" not in cache:
-        m = atlas.open
-        b = m.boundary_edges
-        kind = m.edge_kind[b]
-        owner = m.edge_owner[b]
-        e = m.edges[b]
-        hinge = (kind == BoundaryKind.EXIT) & (owner >= atlas.n_exits)
-        on_hinge = np.zeros(m.n_points, bool)
-        on_hinge[e[hinge].ravel()] = True
-        on_other = np.zeros(m.n_points, bool)
-        on_other[e[~hinge].ravel()] = True
-        cache["hinge_inner"] = np.flatnonzero(on_hinge & ~on_other)
+        b = atlas.open.boundary_edges
+        other = np.setdiff1d(b, atlas.hinge_edges)  # walls, obstacles, the building's exits
+        cache["hinge_inner"] = np.flatnonzero(atlas.boundary_vertices(atlas.hinge_edges)
+                                              & ~atlas.boundary_vertices(other))
     return cache["hinge_inner"]
 
 
@@ -255,16 +238,8 @@ def _wall_ends(atlas) -> np.ndarray:
     cache = atlas.steer._cache
     if "wall_ends" not in cache:
         m = atlas.open
-        b = m.boundary_edges
-        kind = m.edge_kind[b]
-        e = m.edges[b]
-        hinge = (kind == BoundaryKind.EXIT) & (m.edge_owner[b] >= atlas.n_exits)
-        solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
-        on_h = np.zeros(m.n_points, bool)
-        on_h[e[hinge].ravel()] = True
-        on_w = np.zeros(m.n_points, bool)
-        on_w[e[solid].ravel()] = True
-        ends = np.flatnonzero(on_h & on_w)
+        ends = np.flatnonzero(atlas.boundary_vertices(atlas.hinge_edges)
+                              & atlas.boundary_vertices(m.wall_edges()))
         g = atlas.glued
         total = np.zeros(m.n_points)
         np.add.at(total, g.canon[g.triangles].ravel(), g.angles.ravel())

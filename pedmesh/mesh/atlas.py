@@ -37,7 +37,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import MeshError
-from .building import HINGE_PREFIX
+from .building import piece_segments
 from .surface import SurfaceMesh
 from .triangle_mesh import BoundaryKind, TriMesh
 
@@ -63,44 +63,8 @@ class GluedMesh(TriMesh):
     piece: np.ndarray = field(default=None, repr=False)
     piece_shift: np.ndarray = field(default=None, repr=False)
 
-    @cached_property
-    def _edge_data(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        tri = self.triangles
-        m = len(tri)
-        loc = tri[:, [[1, 2], [2, 0], [0, 1]]].reshape(-1, 2)  # (3 m, 2) actual vertices
-        keys = np.sort(self.canon[loc], axis=1)
-        ckeys, inv, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-        inv = inv.ravel()
-        if counts.max() > 2:
-            e = int(np.argmax(counts))
-            raise MeshError(f"edge {tuple(ckeys[e])} is shared by {counts.max()} triangles")
-        owner = np.repeat(np.arange(m), 3)
-        order = np.argsort(inv, kind="stable")
-        e_sorted = inv[order]
-        first = np.ones(len(order), bool)
-        first[1:] = e_sorted[1:] != e_sorted[:-1]
-        e2t = np.full((len(ckeys), 2), -1, np.int64)
-        e2t[e_sorted[first], 0] = owner[order[first]]
-        e2t[e_sorted[~first], 1] = owner[order[~first]]
-        # an edge's vertices are those of its first triangle (its geometry is in that frame)
-        edges = np.empty_like(ckeys)
-        edges[e_sorted[first]] = np.sort(loc[order[first]], axis=1)
-        t2e = inv.reshape(m, 3).astype(np.int64)
-        object.__setattr__(self, "_ckeys", ckeys.astype(np.int64))
-        for a in (edges, t2e, e2t):
-            a.setflags(write=False)
-        return edges.astype(np.int64), t2e, e2t
-
-    def find_edges(self, pairs: np.ndarray) -> np.ndarray:
-        """Edge index of each vertex pair (any order, either copy of a stair edge's
-        vertices), -1 where no such edge exists."""
-        self._edge_data  # (sets _ckeys)
-        pairs = np.sort(self.canon[np.asarray(pairs, np.int64).reshape(-1, 2)], axis=1)
-        n = np.int64(self.n_points)
-        keys = self._ckeys[:, 0] * n + self._ckeys[:, 1]
-        q = pairs[:, 0] * n + pairs[:, 1]
-        pos = np.minimum(np.searchsorted(keys, q), len(keys) - 1)
-        return np.where(keys[pos] == q, pos, -1)
+    def _vertex_keys(self, v: np.ndarray) -> np.ndarray:
+        return self.canon[v]
 
     @cached_property
     def vertex_triangles(self) -> tuple[np.ndarray, np.ndarray]:
@@ -146,6 +110,19 @@ class Atlas:
     def n_exits(self) -> int:
         """The building's own exits (the first exits of :attr:`open`)."""
         return len(self.surface.exit_names)
+
+    @cached_property
+    def hinge_edges(self) -> np.ndarray:
+        """The edges of :attr:`open` that are stair edges (its exits after the building's)."""
+        m = self.open
+        b = m.boundary_edges
+        return b[(m.edge_kind[b] == BoundaryKind.EXIT) & (m.edge_owner[b] >= self.n_exits)]
+
+    def boundary_vertices(self, edges: np.ndarray) -> np.ndarray:
+        """(n,) True on the vertices of ``edges`` (edges of :attr:`open`)."""
+        out = np.zeros(self.open.n_points, bool)
+        out[self.open.edges[edges].ravel()] = True
+        return out
 
     def to_3d(self, xy: np.ndarray, piece: np.ndarray) -> np.ndarray:
         """3-D points (k, 3) [m] of atlas points ``xy`` (k, 2) on pieces ``piece`` (k,)."""
@@ -199,29 +176,18 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
     seg, kind, owner, obstacles = [], [], [], []
     hseg, howner = [], []
     for k, p in enumerate(pieces):
-        m = p.mesh
-        for j in range(len(m.segments)):
-            sk, so = int(m.segment_kind[j]), int(m.segment_owner[j])
-            s = m.segments[j] + starts[k]
-            if sk == BoundaryKind.EXIT:
-                name = m.exit_names[so]
-                if name.startswith(HINGE_PREFIX):
-                    label = f"{name}@{p.name}"
-                    if label not in hinge_names:
-                        hinge_names.append(label)
-                        hinge_piece.append(k)
-                    hseg.append(s)
-                    howner.append(len(exit_names) + hinge_names.index(label))
-                    continue
-                so = exit_names.index(name)
-            elif sk == BoundaryKind.OBSTACLE:  # (one number per obstacle, not per side)
-                oname = f"{p.name}/{m.obstacle_names[so]}"
-                if oname not in obstacles:
-                    obstacles.append(oname)
-                so = obstacles.index(oname)
-            seg.append(s)
+        rows, stair_edges = piece_segments(p.name, p.mesh, exit_names, obstacles)
+        for j, sk, so in rows:
+            seg.append(p.mesh.segments[j] + starts[k])
             kind.append(sk)
             owner.append(so)
+        for j, name in stair_edges:
+            label = f"{name}@{p.name}"
+            if label not in hinge_names:
+                hinge_names.append(label)
+                hinge_piece.append(k)
+            hseg.append(p.mesh.segments[j] + starts[k])
+            howner.append(len(exit_names) + hinge_names.index(label))
     seg_a = np.array(seg, np.int64).reshape(-1, 2)
     shift = _piece_shifts(pts, to_surface, canon, starts, len(pieces))
     glued = GluedMesh(points=pts, triangles=tri, segments=seg_a,

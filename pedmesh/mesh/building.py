@@ -18,7 +18,7 @@ from .surface import Piece, SurfaceMesh
 from .triangle_mesh import BoundaryKind, TriMesh
 from .triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
 
-__all__ = ["triangulate_building", "HINGE_PREFIX"]
+__all__ = ["triangulate_building", "piece_segments", "HINGE_PREFIX"]
 
 #: the name prefix of the mesher's exits that are stair edges (never a real exit's name)
 HINGE_PREFIX = "\u2195hinge:"
@@ -173,18 +173,8 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
         points.append(p3)
         tris.append(m.triangles + offset)
         piece_of.append(np.full(m.n_triangles, k))
-        for j in range(len(m.segments)):
-            sk, so = int(m.segment_kind[j]), int(m.segment_owner[j])
-            if sk == BoundaryKind.EXIT:
-                ename = m.exit_names[so]
-                if ename.startswith(HINGE_PREFIX):
-                    continue  # a stair edge: interior once stitched
-                so = exit_names.index(ename)
-            elif sk == BoundaryKind.OBSTACLE:  # (one number per obstacle, not per side)
-                oname = f"{name}/{m.obstacle_names[so]}"
-                if oname not in obstacle_names:
-                    obstacle_names.append(oname)
-                so = obstacle_names.index(oname)
+        rows, _ = piece_segments(name, m, exit_names, obstacle_names)  # (stair edges: interior)
+        for j, sk, so in rows:
             seg.append(m.segments[j] + offset)
             kind.append(sk)
             owner.append(so)
@@ -219,6 +209,30 @@ def _stitch(building, hinges, levels, stairs, charts) -> SurfaceMesh:
                        segment_kind=np.array(kind, np.int8), segment_owner=np.array(owner),
                        exit_names=tuple(exit_names), obstacle_names=tuple(obstacle_names),
                        building=building)
+
+
+def piece_segments(name: str, m: TriMesh, exit_names: list[str],
+                   obstacle_names: list[str]) -> tuple[list, list]:
+    """The tagged boundary of piece ``name``'s chart mesh ``m``: ``(j, kind, owner)`` of
+    each wall, obstacle and exit segment ``m.segments[j]``, with the exits numbered as in
+    ``exit_names`` and the obstacles as in ``obstacle_names`` (one number per obstacle,
+    named ``PIECE/OBSTACLE``; the list grows), and ``(j, name)`` of each stair-edge segment."""
+    rows, hinges = [], []
+    for j in range(len(m.segments)):
+        sk, so = int(m.segment_kind[j]), int(m.segment_owner[j])
+        if sk == BoundaryKind.EXIT:
+            ename = m.exit_names[so]
+            if ename.startswith(HINGE_PREFIX):
+                hinges.append((j, ename))
+                continue
+            so = exit_names.index(ename)
+        elif sk == BoundaryKind.OBSTACLE:
+            oname = f"{name}/{m.obstacle_names[so]}"
+            if oname not in obstacle_names:
+                obstacle_names.append(oname)
+            so = obstacle_names.index(oname)
+        rows.append((j, sk, so))
+    return rows, hinges
 
 
 def _hinge_vertices(piece, name: str, pts: np.ndarray, along: np.ndarray) -> np.ndarray:

@@ -177,27 +177,38 @@ class TriMesh:
         )
 
     # ------------------------------------------------------------------ topology
+    def _vertex_keys(self, v: np.ndarray) -> np.ndarray:
+        """The vertex each vertex index stands for in the topology: itself (a
+        :class:`~pedmesh.mesh.atlas.GluedMesh` maps the two copies of a stair edge's
+        vertices to one)."""
+        return v
+
     @cached_property
     def _edge_data(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         tri = self.triangles
         m = len(tri)
         # local edge i is opposite vertex i: (v[i+1], v[i+2])
-        loc = tri[:, [[1, 2], [2, 0], [0, 1]]]  # (m, 3, 2)
-        srt = np.sort(loc.reshape(-1, 2), axis=1)
-        edges, inv, counts = np.unique(srt, axis=0, return_inverse=True, return_counts=True)
+        loc = tri[:, [[1, 2], [2, 0], [0, 1]]].reshape(-1, 2)  # (3 m, 2)
+        srt = np.sort(self._vertex_keys(loc), axis=1)
+        keys, inv, counts = np.unique(srt, axis=0, return_inverse=True, return_counts=True)
         inv = inv.ravel()
         if counts.max() > 2:
             e = int(np.argmax(counts))
-            raise MeshError(f"edge {tuple(edges[e])} is shared by {counts.max()} triangles")
+            raise MeshError(f"edge {tuple(keys[e])} is shared by {counts.max()} triangles")
         t2e = inv.reshape(m, 3)
         owner = np.repeat(np.arange(m), 3)
         order = np.argsort(inv, kind="stable")
         e_sorted = inv[order]
         first = np.ones(len(order), bool)
         first[1:] = e_sorted[1:] != e_sorted[:-1]
-        e2t = np.full((len(edges), 2), -1, np.int64)
+        e2t = np.full((len(keys), 2), -1, np.int64)
         e2t[e_sorted[first], 0] = owner[order[first]]
         e2t[e_sorted[~first], 1] = owner[order[~first]]
+        # an edge's vertices are those of its first triangle (the keys themselves, but in a
+        # glued mesh, where the geometry is that triangle's)
+        edges = np.empty_like(keys)
+        edges[e_sorted[first]] = np.sort(loc[order[first]], axis=1)
+        self._cache["edge_keys"] = keys.astype(np.int64)
         for a in (edges, t2e, e2t):
             a.setflags(write=False)
         return edges.astype(np.int64), t2e.astype(np.int64), e2t
@@ -268,9 +279,12 @@ class TriMesh:
 
     def find_edges(self, pairs: np.ndarray) -> np.ndarray:
         """Edge index of each vertex pair (any order), -1 where no such edge exists."""
-        pairs = np.sort(np.asarray(pairs, dtype=np.int64).reshape(-1, 2), axis=1)
+        pairs = np.sort(self._vertex_keys(np.asarray(pairs, dtype=np.int64).reshape(-1, 2)),
+                        axis=1)
         n = np.int64(self.n_points)
-        keys = self.edges[:, 0] * n + self.edges[:, 1]  # sorted, as edges are
+        self._edge_data  # (its keys, sorted)
+        ek = self._cache["edge_keys"]
+        keys = ek[:, 0] * n + ek[:, 1]
         q = pairs[:, 0] * n + pairs[:, 1]
         pos = np.searchsorted(keys, q)
         pos = np.minimum(pos, len(keys) - 1)
