@@ -19,6 +19,7 @@ import numpy as np
 from pedmesh.eikonal.direction import _inside_packed, _interpolate
 from pedmesh.speed import shape
 from pedmesh.models.sfm.crowding import crowd_factors
+from pedmesh.models.sfm.forces import pair_force  # (unchanged by the threads)
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
 #: barycentric margin of the division-free "still inside its triangle" test; anything
@@ -128,32 +129,6 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
                     if with_density:
                         rho[i] += rhoi
     return m_near, m_far
-
-
-@nb.njit(cache=False, inline="always")
-def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij):
-    """Force [N] on pedestrian i from j: ``dx, dy`` = x_i - x_j at distance ``d`` > 0 and
-    ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((s_ij - d)/B) and the body force
-    k (r_ij - d)_+ along n_ij, and the sliding friction kappa (r_ij - d)_+ <v_j - v_i, t_ij>
-    t_ij with t_ij = (-n_y, n_x). ``rij`` is the sum of the body radii [m], ``sij`` that of
-    the social radii [m] (the space the two keep, :func:`social_radii`; ``sij = rij`` in the
-    paper's model). The one definition used for pairs, walls (a resting partner at the
-    contact point) and the calibration."""
-    nx_ = dx / d
-    ny_ = dy / d
-    ov = rij - d
-    f = A * math.exp((sij - d) * invB)
-    fx = f * nx_
-    fy = f * ny_
-    if ov > 0.0:
-        fx += k * ov * nx_
-        fy += k * ov * ny_
-        tx = -ny_
-        ty = nx_
-        ft = kappa * ov * (dvx * tx + dvy * ty)
-        fx += ft * tx
-        fy += ft * ty
-    return fx, fy
 
 
 @nb.njit(cache=False)
