@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..mesh.surface import SurfaceMesh
+from ..mesh.triangle_mesh import TriMesh
 from . import fmm_kernels as _fmm
 from .direction import DirectionField
 from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
@@ -38,35 +39,77 @@ class SurfaceEikonalSolver(EikonalSolver):
             raise ParameterError("SurfaceEikonalSolver takes a building's SurfaceMesh")
         super().__init__(surface, exits, corner_radius)
 
+    def _groups(self) -> list[tuple[TriMesh, np.ndarray, np.ndarray]]:
+        """The flat groups of the surface: ``(mesh, vertices, triangles)`` for each set of
+        pieces joined by stairs without rise (all in one horizontal plane, so their plan is
+        their chart and the stair edges between them are no fold at all), one piece where no
+        such stair joins it. ``mesh`` is the group's flat mesh; ``vertices`` and
+        ``triangles`` give the surface vertex and triangle of each of its vertices and
+        triangles. Within a group the obtuse-angle splits and the corner rays see across
+        the stair edges as on one room, so a flat connector answers as the floor it
+        replaces."""
+        if "groups" in self.__dict__:
+            return self.__dict__["groups"]
+        s = self.mesh
+        b = s.building
+        members: dict[int, list[int]] = {}
+        for k, grp in enumerate(s.piece_group):
+            members.setdefault(int(grp), []).append(k)
+        out = []
+        for ks in members.values():
+            if len(ks) == 1:
+                p = s.pieces[ks[0]]
+                out.append((p.mesh, p.vertices, p.triangles))
+                continue
+            tris = np.flatnonzero(np.isin(s.piece, ks))
+            verts = np.unique(s.triangles[tris])
+            local = np.full(s.n_points, -1, np.int64)
+            local[verts] = np.arange(len(verts))
+            m0 = TriMesh(points=s.points[verts, :2], triangles=local[s.triangles[tris]])
+            # the surface's walls, obstacles and exits that are edges of the group
+            seg = local[s.segments]
+            ok = np.all(seg >= 0, axis=1)
+            ok[ok] = m0.find_edges(seg[ok]) >= 0
+            rooms = [s.pieces[k] for k in ks]
+            region = _group_region(b, [p.name for p in rooms])
+            out.append((TriMesh(points=m0.points, triangles=m0.triangles, segments=seg[ok],
+                                segment_kind=s.segment_kind[ok],
+                                segment_owner=s.segment_owner[ok], exit_names=s.exit_names,
+                                obstacle_names=s.obstacle_names, room=region),
+                        verts, tris))
+        self.__dict__["groups"] = out
+        return out
+
     def _split_vertices(self) -> np.ndarray:
-        """The obtuse-angle splits, piece by piece in each chart (a walk stops at a stair
-        edge, the boundary of its piece), in surface numbering."""
+        """The obtuse-angle splits, group by group (:meth:`_groups`) in each group's chart
+        (a walk stops at a stair edge with a rise, the boundary of its group), in surface
+        numbering."""
         s = self.mesh
         split = np.full((s.n_triangles, 3), -1, np.int64)
-        for p in s.pieces:
-            m = p.mesh
+        for m, verts, tris in self._groups():
             loc = _fmm.find_split_vertices(m.points, m.triangles, m.triangle_neighbors,
                                            MAX_SPLIT_STEPS)
-            split[p.triangles] = np.where(loc >= 0, p.vertices[np.maximum(loc, 0)], loc)
+            split[tris] = np.where(loc >= 0, verts[np.maximum(loc, 0)], loc)
         return split
 
     def _march_points(self) -> np.ndarray:
         return np.ascontiguousarray(self.mesh.points)
 
     def _rays(self) -> None:
-        """The corner rays of every piece, in surface numbering (CSR by source vertex)."""
+        """The corner rays of every group (:meth:`_groups`), in surface numbering (CSR by
+        source vertex)."""
         s = self.mesh
         src, dst, length, samp_n, samp_tri = [], [], [], [], []
-        for p in s.pieces:
-            ptr, idx, ln = _corner_rays(p.mesh, self.corner_radius)
+        for m, verts, tris in self._groups():
+            ptr, idx, ln = _corner_rays(m, self.corner_radius)
             if len(idx) == 0:
                 continue
-            sptr, stri = _ray_samples(p.mesh, ptr, idx, ln)
-            src.append(p.vertices[np.repeat(np.arange(p.mesh.n_points), np.diff(ptr))])
-            dst.append(p.vertices[idx])
+            sptr, stri = _ray_samples(m, ptr, idx, ln)
+            src.append(verts[np.repeat(np.arange(m.n_points), np.diff(ptr))])
+            dst.append(verts[idx])
             length.append(ln)
             samp_n.append(np.diff(sptr))
-            samp_tri.append(np.split(p.triangles[stri], sptr[1:-1]))
+            samp_tri.append(np.split(tris[stri], sptr[1:-1]))
         n = s.n_points
         if not src:
             self.ray_ptr = np.zeros(n + 1, np.int64)
@@ -84,6 +127,30 @@ class SurfaceEikonalSolver(EikonalSolver):
         self.ray_samp_ptr = np.zeros(len(samples) + 1, np.int64)
         np.cumsum(counts, out=self.ray_samp_ptr[1:])
         self.ray_samp_tri = np.concatenate(samples).astype(np.int64)
+
+
+def _group_region(building, names: list[str]):
+    """The walkable plan (a shapely polygon) of the pieces ``names`` of one flat group: its
+    levels' walkable areas and its stairs' polygons, as one room
+    (:class:`~pedmesh.geometry.Room`) without its exits, for the corner rays' visibility."""
+    import shapely
+
+    parts = []
+    for lv in building.levels:
+        if lv.name in names:
+            parts.append(lv.room.walkable)
+    for st in building.stairs:
+        if st.name in names:
+            parts.append(st.shape)
+    union = shapely.union_all(parts)
+    return _RegionRoom(union)
+
+
+class _RegionRoom:
+    """A stand-in for a room that only has a walkable area (what the corner rays read)."""
+
+    def __init__(self, walkable) -> None:
+        self.walkable = walkable
 
 
 def stair_factors(surface: SurfaceMesh, phi: np.ndarray | None = None) -> np.ndarray:
@@ -135,6 +202,12 @@ def atlas_direction_field(atlas, phi: np.ndarray) -> DirectionField:
     are the descent of the gradients of the triangles on both sides."""
     pa = np.asarray(phi, float)[atlas.to_surface]
     df = DirectionField(atlas.steer, pa)
+    merged = atlas.flat_steer
+    if merged is not None:  # flat connectors: their groups steer as one room
+        mesh, key = merged
+        pm = np.empty(mesh.n_points)
+        pm[key] = pa
+        df.vertex_directions = DirectionField(mesh, pm).vertex_directions[key]
     hv = _hinge_inner_vertices(atlas)
     if len(hv):
         g = atlas.glued
@@ -163,7 +236,7 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
     m = atlas.open
     cache = atlas.steer._cache
     if "hinge_edges" not in cache:
-        he = atlas.hinge_edges
+        he = atlas.folded_hinge_edges
         t = m.edge_triangles[he, 0]
         loc = np.argmax(m.triangle_edges[t] == he[:, None], axis=1)
         g = atlas.glued
@@ -194,7 +267,7 @@ def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
         rows = []  # (triangle, local corner, jamb vertex, the wall's other vertex)
         ptr, idx = m.vertex_triangles
         touches = np.zeros(m.n_triangles, bool)
-        touches[m.edge_triangles[atlas.hinge_edges, 0]] = True
+        touches[m.edge_triangles[atlas.folded_hinge_edges, 0]] = True
         ends = _wall_ends(atlas)
         for a, c in m.edges[m.wall_edges()]:
             for v, u in ((a, c), (c, a)):
@@ -224,7 +297,7 @@ def _hinge_inner_vertices(atlas) -> np.ndarray:
     if "hinge_inner" not in cache:
         b = atlas.open.boundary_edges
         other = np.setdiff1d(b, atlas.hinge_edges)  # walls, obstacles, the building's exits
-        cache["hinge_inner"] = np.flatnonzero(atlas.boundary_vertices(atlas.hinge_edges)
+        cache["hinge_inner"] = np.flatnonzero(atlas.boundary_vertices(atlas.folded_hinge_edges)
                                               & ~atlas.boundary_vertices(other))
     return cache["hinge_inner"]
 
@@ -238,7 +311,7 @@ def _wall_ends(atlas) -> np.ndarray:
     cache = atlas.steer._cache
     if "wall_ends" not in cache:
         m = atlas.open
-        ends = np.flatnonzero(atlas.boundary_vertices(atlas.hinge_edges)
+        ends = np.flatnonzero(atlas.boundary_vertices(atlas.folded_hinge_edges)
                               & atlas.boundary_vertices(m.wall_edges()))
         g = atlas.glued
         total = np.zeros(m.n_points)

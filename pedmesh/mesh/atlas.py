@@ -118,6 +118,51 @@ class Atlas:
         b = m.boundary_edges
         return b[(m.edge_kind[b] == BoundaryKind.EXIT) & (m.edge_owner[b] >= self.n_exits)]
 
+    @cached_property
+    def folded_hinge_edges(self) -> np.ndarray:
+        """The :attr:`hinge_edges` between two flat groups
+        (:attr:`~pedmesh.mesh.surface.SurfaceMesh.piece_group`): the stair edges that are a
+        fold of the surface (or join two planes), not a flat connector's, which is no edge
+        at all for the steering."""
+        he = self.hinge_edges
+        g = self.glued
+        both = g.edge_triangles[g.find_edges(self.open.edges[he])]
+        grp = self.surface.piece_group[self.surface.piece[both]]
+        return he[grp[:, 0] != grp[:, 1]]
+
+    @cached_property
+    def flat_steer(self) -> tuple[TriMesh, np.ndarray] | None:
+        """``(mesh, key)``: :attr:`steer` with the two copies of every flat connector's
+        stair edge made one (an interior edge), and ``key`` (n,) the vertex of ``mesh`` of
+        each atlas vertex; None without flat connectors. The pieces of a flat group share
+        their plan in the atlas, so ``mesh`` is each group's room as one mesh, and a
+        direction field on it is the flat room's."""
+        he = np.setdiff1d(self.hinge_edges, self.folded_hinge_edges)
+        if len(he) == 0:
+            return None
+        s = self.surface
+        n = self.open.n_points
+        vgroup = np.empty(n, np.int64)
+        vgroup[self.open.triangles.ravel()] = np.repeat(s.piece_group[s.piece], 3)
+        # one vertex per (surface vertex, flat group): the first atlas copy
+        pair = self.to_surface * (int(vgroup.max()) + 1) + vgroup
+        _, first, inv = np.unique(pair, return_index=True, return_inverse=True)
+        rep = first[inv]
+        keep = np.unique(rep)
+        compact = np.full(n, -1, np.int64)
+        compact[keep] = np.arange(len(keep))
+        key = compact[rep]
+        st = self.steer
+        seg_keys = np.sort(key[st.segments], axis=1)
+        he_keys = np.sort(key[self.open.edges[he]], axis=1)
+        flat_seg = np.isin(seg_keys[:, 0] * n + seg_keys[:, 1], he_keys[:, 0] * n + he_keys[:, 1])
+        mesh = TriMesh(points=st.points[keep], triangles=key[st.triangles],
+                       segments=key[st.segments[~flat_seg]],
+                       segment_kind=st.segment_kind[~flat_seg],
+                       segment_owner=st.segment_owner[~flat_seg], exit_names=st.exit_names,
+                       obstacle_names=st.obstacle_names)
+        return mesh, key
+
     def boundary_vertices(self, edges: np.ndarray) -> np.ndarray:
         """(n,) True on the vertices of ``edges`` (edges of :attr:`open`)."""
         out = np.zeros(self.open.n_points, bool)
@@ -157,7 +202,7 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
     if "atlas" in surface._cache:
         return surface._cache["atlas"]
     pieces = surface.pieces
-    offset = _offsets(pieces)
+    offset = _offsets(pieces, surface.piece_group)
     starts = np.cumsum([0] + [p.mesh.n_points for p in pieces])
     pts = np.concatenate([p.mesh.points + offset[k] for k, p in enumerate(pieces)])
     tri = np.concatenate([p.mesh.triangles + starts[k] for k, p in enumerate(pieces)])
@@ -236,36 +281,39 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
     return atlas
 
 
-def _offsets(pieces) -> np.ndarray:
+def _offsets(pieces, group: np.ndarray) -> np.ndarray:
     """(p, 2) [m] each piece's place in the atlas: its own chart where that overlaps no
     piece placed before it (a building without stacked parts keeps its plan); the others
     on shelves to the right of those, :data:`ATLAS_GAP` apart, in rows about as wide as
-    all of them are high (a compact picture: :func:`pedmesh.plotting.plot_density`)."""
+    all of them are high (a compact picture: :func:`pedmesh.plotting.plot_density`). The
+    pieces of one flat group (:attr:`~pedmesh.mesh.surface.SurfaceMesh.piece_group`) move
+    together: their charts stay one plan."""
     import shapely
-    import shapely.affinity
 
     offset = np.zeros((len(pieces), 2))
-    regions = [shapely.union_all(shapely.polygons(p.mesh.points[p.mesh.triangles]))
-               for p in pieces]
+    n_groups = int(group.max()) + 1
+    members = [np.flatnonzero(group == g) for g in range(n_groups)]
+    regions = [shapely.union_all([shapely.union_all(shapely.polygons(
+        pieces[k].mesh.points[pieces[k].mesh.triangles])) for k in ks]) for ks in members]
     placed = None
     moved = []
-    for k, region in enumerate(regions):
+    for g, region in enumerate(regions):
         if placed is not None and placed.intersection(region).area > 1e-9 * region.area:
-            moved.append(k)
+            moved.append(g)
             continue
         placed = region if placed is None else shapely.union(placed, region)
     if not moved:
         return offset
     x0, _, x1, y1 = placed.bounds
-    lo = np.array([pieces[k].mesh.points.min(axis=0) for k in moved])
-    size = np.array([pieces[k].mesh.points.max(axis=0) for k in moved]) - lo + ATLAS_GAP
+    lo = np.array([np.array(regions[g].bounds[:2]) for g in moved])
+    size = np.array([np.array(regions[g].bounds[2:]) for g in moved]) - lo + ATLAS_GAP
     width = max(float(size[:, 0].max()), math.sqrt(float(np.sum(size[:, 0] * size[:, 1]))),
                 x1 - x0)
     x, y, row = x1 + ATLAS_GAP, y1, 0.0
-    for k, l, sz in zip(moved, lo, size):
+    for g, l, sz in zip(moved, lo, size):
         if x + sz[0] > x1 + ATLAS_GAP + width and row > 0:  # a new shelf below
             x, y, row = x1 + ATLAS_GAP, y - row, 0.0
-        offset[k] = (x - l[0], y - sz[1] + ATLAS_GAP - l[1])
+        offset[members[g]] = (x - l[0], y - sz[1] + ATLAS_GAP - l[1])
         x += sz[0]
         row = max(row, sz[1])
     return offset

@@ -177,6 +177,31 @@ class SurfaceMesh:
         """(p,) True for the stairs among the pieces."""
         return np.array([p.kind == "stair" for p in self.pieces], bool)
 
+    @cached_property
+    def piece_group(self) -> np.ndarray:
+        """(p,) the flat group of each piece: pieces joined by stairs without rise (a flat
+        connector) form one group, which lies in one horizontal plane and whose plan is its
+        chart, as one room's; the stair edges within a group are no fold at all. Groups are
+        numbered by their first piece."""
+        n = len(self.pieces)
+        root = list(range(n))
+
+        def find(k: int) -> int:
+            while root[k] != k:
+                k = root[k]
+            return k
+
+        b = self.building
+        for st in (b.stairs if b is not None else ()):
+            if b.rise(st) != 0:
+                continue
+            ks = sorted(find(self.piece_index(x))
+                        for x in (st.name, st.bottom.level, st.top.level))
+            for k in ks[1:]:
+                root[k] = ks[0]
+        roots = np.array([find(k) for k in range(n)], np.int64)
+        return np.unique(roots, return_inverse=True)[1].astype(np.int64)
+
     def piece_index(self, name: str) -> int:
         """The index of the piece (level or stair) called ``name``."""
         for k, p in enumerate(self.pieces):

@@ -205,9 +205,11 @@ class TriMesh:
         e2t[e_sorted[first], 0] = owner[order[first]]
         e2t[e_sorted[~first], 1] = owner[order[~first]]
         # an edge's vertices are those of its first triangle (the keys themselves, but in a
-        # glued mesh, where the geometry is that triangle's)
+        # glued mesh, where the geometry is that triangle's), in the order of their keys
         edges = np.empty_like(keys)
-        edges[e_sorted[first]] = np.sort(loc[order[first]], axis=1)
+        lf = loc[order[first]]
+        kf = self._vertex_keys(lf)
+        edges[e_sorted[first]] = np.where((kf[:, 0] > kf[:, 1])[:, None], lf[:, ::-1], lf)
         self._cache["edge_keys"] = keys.astype(np.int64)
         for a in (edges, t2e, e2t):
             a.setflags(write=False)

@@ -119,26 +119,33 @@ def test_a_stair_slows_the_crowd_down():
     assert t[3.0] - t[0.0] == pytest.approx(expected, rel=0.25)
 
 
-@pytest.mark.parametrize("model", ["eos", "rdue", "pw"])
-def test_a_flat_connector_answers_like_the_flat_room(model):
-    """A stair without rise joins two levels like the floor it replaces: the same triangles
-    as one flat room give T50 and T90 within 1 % (not bit for bit: the fast marching's
-    obtuse-angle splits stop at a stair edge, which moves the route potential by about a
-    centimetre near it)."""
-    b = strip(0.0)
-    s = triangulate_building(b, max_area=0.3, feature_area=None)
+def _flat_twin(b: Building, s):
+    """The strip without its stair: one flat room on the same triangles (numbered as the
+    surface's)."""
     room = Room(outline=[(0, 0), (24, 0), (24, 4), (0, 4)], name="flat",
                 exits=[Exit("door", [(0, 2.5), (0, 1.5)])],
                 start_areas=list(b.levels[1].room.start_areas))
     flat = TriMesh(points=s.points[:, :2], triangles=s.triangles, segments=s.segments,
                    segment_kind=s.segment_kind, segment_owner=s.segment_owner,
                    exit_names=s.exit_names, room=room)
+    return room, flat
+
+
+@pytest.mark.parametrize("model", ["eos", "rdue", "pw"])
+def test_a_flat_connector_answers_like_the_flat_room_bit_for_bit(model):
+    """A stair without rise joins two levels like the floor it replaces: on the same
+    triangles as one flat room, the same numbers to the last bit (the routes, the steering
+    and the fluxes see no edge where the surface does not fold)."""
+    b = strip(0.0)
+    s = triangulate_building(b, max_area=0.3, feature_area=None)
+    room, flat = _flat_twin(b, s)
     rb, _ = _run(b, s, model)
     rf, _ = _run(room, flat, model)
     sb, sf = rb.summary(), rf.summary()
-    assert sb["n_initial"] == pytest.approx(sf["n_initial"], rel=1e-12)
-    for key in ("t_evac_50", "t_evac_90"):
-        assert sb[key] == pytest.approx(sf[key], rel=0.01)
+    for key in ("n_initial", "t_evac_50", "t_evac_90", "t_evac_100", "steps"):
+        if key in sb:
+            assert sb[key] == sf[key], key
+    assert np.array_equal(rb.state.Q, rf.state.Q)
 
 
 def test_models_without_surface_support_say_so():

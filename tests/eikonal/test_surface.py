@@ -127,3 +127,43 @@ def test_the_walking_direction_follows_the_surface():
     ramp = m.pieces[m.piece_index("ramp")].triangles
     assert np.allclose(g[ramp], [0.8, 0.0, 0.6], atol=1e-9)  # up the 3-4-5 slope
     assert np.allclose(np.abs(np.sum(g * m.normals, axis=1)), 0.0, atol=1e-12)  # tangent
+
+
+def test_a_flat_connector_is_no_edge_bit_for_bit():
+    """A stair without rise (a flat connector) between two levels at one height is no edge
+    of the surface: the potential and the direction field equal the flat room's on the same
+    triangles to the last bit, with the exit's corner rays and the obtuse-angle splits
+    reaching across the connector (the door is 3 m from it) and a reflex corner on the far
+    level."""
+    from pedmesh.eikonal import DirectionField, EikonalSolver
+    from pedmesh.eikonal.surface import atlas_direction_field
+    from pedmesh.mesh import TriMesh
+    from pedmesh.mesh.atlas import build_atlas
+
+    door = Exit("door", [(0, 2.5), (0, 1.5)])
+    a = Room(outline=[(0, 0), (3, 0), (3, 4), (0, 4)], name="a", exits=[door])
+    far = [(5, 0), (12, 0), (12, 10), (8, 10), (8, 4), (5, 4)]
+    b = Room(outline=far, name="b")
+    st = Stair("link", [(3, 0), (5, 0), (5, 4), (3, 4)],
+               {"level": "a", "edge": [(3, 0), (3, 4)]},
+               {"level": "b", "edge": [(5, 0), (5, 4)]})
+    bld = Building([Level("a", 2.0, a), Level("b", 2.0, b)], [st], name="flat")
+    s = triangulate_building(bld, max_area=0.2, feature_area=None)
+    room = Room(outline=[(0, 0), *far[:-1], (0, 4)], name="one", exits=[door])
+    flat = TriMesh(points=s.points[:, :2], triangles=s.triangles, segments=s.segments,
+                   segment_kind=s.segment_kind, segment_owner=s.segment_owner,
+                   exit_names=s.exit_names, room=room)
+    surf, plain = SurfaceEikonalSolver(s), EikonalSolver(flat)
+    across = np.isin(plain.ray_idx, np.flatnonzero(flat.points[:, 0] > 5.0))
+    assert across.any()  # (rays from the door's ends reach the far level)
+    for name in ("ray_ptr", "ray_idx", "ray_len", "ray_samp_tri", "vt_corner", "ds_corner"):
+        assert np.array_equal(getattr(surf, name), getattr(plain, name)), name
+    cost = np.random.default_rng(3).uniform(0.5, 2.0, s.n_triangles)
+    for c in (1.0, cost):
+        phi = surf.solve(c)
+        assert np.array_equal(phi, plain.solve(c))
+    atlas = build_atlas(s)
+    df = atlas_direction_field(atlas, phi)
+    ref = DirectionField(flat, phi)
+    assert np.array_equal(df.vertex_directions, ref.vertex_directions[atlas.to_surface])
+    assert np.array_equal(df.packed, ref.packed)
