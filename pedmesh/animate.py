@@ -1,5 +1,7 @@
 """An animation of a run: the density field (continuum models) or the crowd (particle
-models) over the room, with a clock, as MP4 or GIF (``pedmesh animate``).
+models) over the room, with a clock, as MP4 or GIF (``pedmesh animate``). A building's
+levels and stairs are drawn side by side, each in its own plane (its atlas,
+:mod:`pedmesh.run.layout`).
 
 The frames are the run's own output frames (``density.pvd``, ``pedestrians.pvd``, one per
 output interval). MP4 is written with the ffmpeg binary of the ``imageio-ffmpeg`` wheel
@@ -26,7 +28,7 @@ class _Frames:
     """A run's output frames (density, and for particle models the pedestrians)."""
 
     def __init__(self, run_dir: Path) -> None:
-        from .io.vtk import read_pvd_index
+        from .io.vtk import read_pvd_index, read_vtu
         from .run.results import RunResult
 
         self.dir = run_dir
@@ -40,6 +42,13 @@ class _Frames:
             raise PedmeshError(f"{pvd}: no frames")
         peds = run_dir / "pedestrians.pvd"
         self.pedestrians = dict(read_pvd_index(peds)) if peds.is_file() else {}
+        self.layout = None  # a building's atlas (its floors side by side), else the plan
+        self.note = ""
+        pts, tri, _, _ = read_vtu(self.density[0][1])
+        if np.ptp(np.asarray(pts)[:, 2]) > 0:  # a building with floors above each other
+            from .run.layout import building_layout
+
+            self.layout, self.note = building_layout(self.result.summary, run_dir, len(tri))
 
     def field(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(points (n, 2), triangles (m, 3), cell density (m,) [ped/m^2]) of frame k."""
@@ -50,6 +59,8 @@ class _Frames:
             rho = np.asarray(cd["rho"], float)
         else:  # the social force model's kernel density at the vertices
             rho = np.asarray(pd["density"], float)[tri].mean(axis=1)
+        if self.layout is not None:
+            return self.layout.points, self.layout.triangles, rho
         return np.asarray(pts)[:, :2], np.asarray(tri), rho
 
     def crowd(self, t: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -61,6 +72,8 @@ class _Frames:
             return None
         pts, data = read_vtp(path)
         speed = np.asarray(data.get("speed", np.zeros(len(pts))), float)
+        if self.layout is not None and "piece" in data:
+            return self.layout.crowd(pts, data["piece"]), speed
         return np.asarray(pts)[:, :2], speed
 
 
@@ -88,6 +101,10 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
     if not run_dir.is_dir():
         raise PedmeshError(f"{run_dir}: no such run folder")
     frames = _Frames(run_dir)
+    if frames.note:
+        import sys
+
+        print(f"note: {frames.note}", file=sys.stderr)
     s = frames.result.summary
     pick = np.unique(np.round(np.linspace(0, len(frames.density) - 1,
                                           min(max_frames, len(frames.density)))).astype(int))
@@ -102,7 +119,10 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
                         cmap="magma_r", shading="flat")
     cb = fig.colorbar(mesh, ax=ax, shrink=0.85, extend="max")
     cb.set_label("density [ped/m²]")
-    _outline(ax, pts, tri)
+    if frames.layout is not None:
+        frames.layout.draw(ax)
+    else:
+        _outline(ax, pts, tri)
     dots = ax.scatter([], [], s=6, c="#1f77b4", edgecolors="none")
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")

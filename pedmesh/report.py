@@ -217,28 +217,6 @@ def folder_kind(path: str | Path) -> str:
                       "summary.json, comparison.csv or ensemble.csv)")
 
 
-def _find_room_file(geometry: str | None, base: Path,
-                    sha: str | None) -> tuple[Path | None, str]:
-    """The room file a run names (as given, or relative to the run folder and the folders
-    above it) and a note: '' when found with the recorded hash."""
-    if not geometry:
-        return None, "the run names no room file"
-    g = Path(geometry)
-    cands = [g] if g.is_absolute() else [g] + [d / g for d in [base, *base.resolve().parents]]
-    found = [c for c in cands if c.is_file()]
-    if not found:
-        return None, f"the room file {geometry} was not found"
-    if sha:
-        from .run.output import file_sha256
-
-        for c in found:
-            if file_sha256(c) == sha:
-                return c, ""
-        return found[0], (f"the room file {found[0]} has changed since the run (its SHA-256 "
-                          "differs from the one recorded); the plan shows the file as it is now")
-    return found[0], ""
-
-
 class _Run:
     """One run folder, read lazily."""
 
@@ -250,6 +228,8 @@ class _Run:
         self.summary: dict = self.result.summary
         self.label = label or self.path.name
         self.notes: list[str] = []  # what the report itself found (room file, frames)
+        #: a building's layout (:mod:`pedmesh.run.layout`), set when its frames are read
+        self.layout = None
 
     @property
     def s(self) -> dict:
@@ -267,9 +247,10 @@ class _Run:
     @cached_property
     def room(self):
         from .io import load_room
+        from .run.layout import find_room_file
 
         sha = (self.summary.get("settings") or {}).get("room_sha256")
-        path, note = _find_room_file(self.summary.get("geometry"), self.path, sha)
+        path, note = find_room_file(self.summary.get("geometry"), self.path, sha)
         if note:
             self.notes.append(note)
         if path is None:
@@ -281,8 +262,7 @@ class _Run:
             return None
         from .geometry import Building
 
-        if isinstance(room, Building):
-            self.notes.append(f"{path} is a building; the report draws single-level rooms")
+        if isinstance(room, Building):  # drawn from its mesh, laid out flat (frames)
             return None
         return room
 
@@ -318,6 +298,17 @@ class _Run:
         fr = _Frames.read(self.path)
         if fr is None:
             self.notes.append("no density frames were saved (density.pvd missing or empty)")
+        elif fr.z_span > 0:  # a building: its levels and stairs side by side (the atlas)
+            from .run.layout import building_layout
+
+            self.layout, note = building_layout(self.summary, self.path, len(fr.triangles))
+            if note:
+                self.notes.append(note)
+            if self.layout is not None:
+                fr.frame_triangles = fr.triangles
+                fr.points = np.asarray(self.layout.points)
+                fr.triangles = np.asarray(self.layout.triangles)
+                fr.layout = self.layout
         return fr
 
     @cached_property
@@ -346,7 +337,11 @@ class _Run:
             m = pv.read(fr[k][1])
         except Exception:
             return None
-        return np.asarray(m.points)[:, :2] if m.n_points else np.zeros((0, 2))
+        if not m.n_points:
+            return np.zeros((0, 2))
+        if self.layout is not None and "piece" in m.point_data:
+            return self.layout.crowd(m.points, m.point_data["piece"])
+        return np.asarray(m.points)[:, :2]
 
     def exits(self) -> list[dict[str, Any]]:
         """Per exit: name, people, first and last passage [s] (None where unknown)."""
@@ -383,6 +378,10 @@ class _Frames:
     paths: list[Path]
     points: np.ndarray
     triangles: np.ndarray
+    z_span: float = 0.0  # [m] the height range of the frames' points (0: one plane)
+    layout: Any = None  # a building's layout (its atlas), where points are drawn
+    #: the frames' own triangles (their point data's), where ``triangles`` are the layout's
+    frame_triangles: np.ndarray | None = None
     _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
@@ -406,7 +405,8 @@ class _Frames:
         except Exception:  # an unreadable frame (a run killed while writing it)
             return None
         self = cls(np.array([t for t, _ in index], float), [f for _, f in index],
-                   np.asarray(m.points)[:, :2].copy(), tri)
+                   np.asarray(m.points)[:, :2].copy(), tri,
+                   float(np.ptp(np.asarray(m.points)[:, 2])))
         self._cache[0] = _cell_density(m, tri)
         return self
 
@@ -429,7 +429,8 @@ class _Frames:
 
         try:
             m = pv.read(self.paths[k])
-            rho = _cell_density(m, self.triangles)
+            rho = _cell_density(m, self.triangles if self.frame_triangles is None
+                                else self.frame_triangles)
         except Exception:
             rho = None
         if rho is not None and len(rho) != len(self.triangles):
@@ -686,7 +687,10 @@ def _draw_room(ax, room, frames: _Frames | None, *, labels: bool = True, lw: flo
     from matplotlib.patches import Polygon as MplPolygon
 
     if room is None:
-        if frames is not None:
+        if frames is not None and frames.layout is not None:
+            frames.layout.draw(ax, lw=lw, labels=labels)
+            ax.autoscale()
+        elif frames is not None:
             _draw_mesh_outline(ax, frames)
         ax.set_aspect("equal")
         return
@@ -794,7 +798,14 @@ def _plan_figure(run: _Run) -> str:
     ax.set_ylabel("y [m]")
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=5,
               fontsize=8, frameon=False)
-    ax.set_title(f"room '{room.name}'" if room is not None else "mesh outline", fontsize=10)
+    if room is not None:
+        title = f"room '{room.name}'"
+    elif frames is not None and frames.layout is not None:
+        title = (f"building '{run.s.get('room', '?')}': levels and stairs side by side, "
+                 "stair edges dashed")
+    else:
+        title = "mesh outline"
+    ax.set_title(title, fontsize=10)
     return _png(fig, 100)
 
 
@@ -1418,9 +1429,13 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
             continue
         seen[key] = r
         figs += _img(_plan_figure(r), f"plan of {r.s.get('room') or r.label}")
+    building = any(r.frames is not None and r.frames.layout is not None for r in seen.values())
     section("plan", "Room plan", figs
             + "<p>Walls in black, exits in green (named), obstacles grey, the start areas "
-            "blue with their people, measurement areas and lines purple.</p>")
+            "blue with their people, measurement areas and lines purple.</p>"
+            + ("<p>A building: its levels and stairs side by side, each in its own plane "
+               "(stacked floors apart, a stair unrolled to its true length), the stair edges "
+               "dashed; the maps below are drawn the same way.</p>" if building else ""))
     section("evacuation", "Evacuation", _img(_evac_figure(runs),
                                              "evacuation curve: people out against time"))
     flow = _flow_figure(runs)

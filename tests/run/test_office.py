@@ -78,3 +78,41 @@ def test_the_trajectories_name_the_level(compared, tmp_path):
     frames = sorted((d / "pedestrians").glob("*.vtp"))
     pts, data = read_vtp(frames[len(frames) // 4])
     assert pts.shape[1] == 3 and pts[:, 2].max() > 3.0 and "piece" in data
+
+
+def test_report_and_animation_lay_the_floors_side_by_side(compared, tmp_path):
+    """The report and the animation draw a building in its atlas (levels and stairs side by
+    side, stacked floors apart), every pedestrian on the piece their frame names."""
+    import json
+
+    from pedmesh.io.vtk import read_pvd_index, read_vtp
+    from pedmesh.run.layout import building_layout
+
+    run = compared / "sfm"
+    summary = json.loads((run / "summary.json").read_text())
+    s = triangulate_building(load_room(OFFICE))
+    layout, note = building_layout(summary, run, s.n_triangles)
+    assert note == "" and layout is not None
+    assert np.array_equal(layout.triangles, layout.atlas.open.triangles)
+    # stacked floors apart: no two levels' boxes overlap in the layout
+    boxes = [layout.points[np.unique(layout.triangles[p.triangles])] for p in s.pieces]
+    lo = np.array([b.min(axis=0) for b in boxes])
+    hi = np.array([b.max(axis=0) for b in boxes])
+    k = len(boxes)
+    overlap = ((lo[:, None] < hi[None] - 1e-9) & (lo[None] < hi[:, None] - 1e-9)).all(axis=2)
+    assert not overlap[~np.eye(k, dtype=bool)].any()
+    # every pedestrian of a frame mid-run lies in a triangle of their own piece
+    frames = read_pvd_index(run / "pedestrians.pvd")
+    pts, data = read_vtp(frames[len(frames) // 4][1])
+    xy = layout.crowd(pts, data["piece"])
+    tri = layout.atlas.open.locate(xy)
+    assert len(xy) > 50 and np.all(tri >= 0)
+    assert np.array_equal(s.piece[tri], np.asarray(data["piece"], np.int64))
+    # the report says so, and the animation is written
+    out = tmp_path / "office.html"
+    assert main(["report", str(run), "-o", str(out)]) == 0
+    html = out.read_text()
+    assert "levels and stairs side by side" in html and "draws single-level rooms" not in html
+    gif = tmp_path / "office.gif"
+    assert main(["animate", str(compared / "eos"), "-o", str(gif), "--max-frames", "2"]) == 0
+    assert gif.stat().st_size > 10_000
