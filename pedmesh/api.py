@@ -39,20 +39,26 @@ __all__ = ["simulate", "build"]
 
 def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
                    max_people: int | None = None):
-    from .geometry import Room
+    from .geometry import Building, Room
     from .io import load_room
     from .mesh import triangulate
+    from .mesh.building import triangulate_building
     from .run.driver import check_crowd
 
     geometry = None
     if isinstance(room, (str, Path)):
         geometry = str(room)
         room = load_room(room)
-    elif not isinstance(room, Room):
-        raise ParameterError(f"room must be a Room or the path of a room file, got "
-                             f"{type(room).__name__}")
+    elif not isinstance(room, (Room, Building)):
+        raise ParameterError(f"room must be a Room, a Building or the path of a room file, "
+                             f"got {type(room).__name__}")
     check_crowd(room, max_people)  # (before the mesh and the crowd are made)
-    if mesh is None:
+    if mesh is None and isinstance(room, Building):  # one surface mesh of levels and stairs
+        opts = {k: v for k, v in dict(mesh_options or {}).items() if k != "exit_size"}
+        if (mesh_options or {}).get("exit_size") is not None:
+            raise ParameterError("exit_size is not available for buildings")
+        mesh = triangulate_building(room, **opts)
+    elif mesh is None:
         mesh = triangulate(room, **dict(mesh_options or {}))
     elif mesh_options:
         raise ParameterError("give either a mesh or mesh_options, not both")
@@ -63,11 +69,13 @@ def build(room, model: str = "sfm", *, preset: str | None = None,
           params: Mapping[str, Any] | None = None, mesh=None,
           mesh_options: Mapping[str, Any] | None = None, max_people: int | None = None,
           **options: Any):
-    """Model ``model`` on ``room`` (a :class:`~pedmesh.geometry.Room` or a room file),
+    """Model ``model`` on ``room`` (a :class:`~pedmesh.geometry.Room`, a
+    :class:`~pedmesh.geometry.Building` or a room file),
     built with the parameters of ``preset`` (default: the room file's, else
     ``validated``) and ``params`` on top, ready to :meth:`step`. ``mesh``: a
-    :class:`~pedmesh.mesh.TriMesh` of the room (default: triangulated with
-    ``mesh_options``, see :func:`pedmesh.mesh.triangulate`). ``max_people``: the largest
+    :class:`~pedmesh.mesh.TriMesh` of the room, or a building's
+    :class:`~pedmesh.mesh.surface.SurfaceMesh` (default: triangulated with ``mesh_options``,
+    see :func:`pedmesh.mesh.triangulate` and :func:`pedmesh.mesh.triangulate_building`). ``max_people``: the largest
     crowd taken (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`). ``options``:
     the model options its registry entry lists (e.g. ``seed`` for the social force
     model)."""

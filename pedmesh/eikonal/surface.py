@@ -236,7 +236,7 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
     m = atlas.open
     cache = atlas.steer._cache
     if "hinge_edges" not in cache:
-        he = atlas.folded_hinge_edges
+        he = atlas.hinge_edges
         t = m.edge_triangles[he, 0]
         loc = np.argmax(m.triangle_edges[t] == he[:, None], axis=1)
         g = atlas.glued
@@ -267,7 +267,7 @@ def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
         rows = []  # (triangle, local corner, jamb vertex, the wall's other vertex)
         ptr, idx = m.vertex_triangles
         touches = np.zeros(m.n_triangles, bool)
-        touches[m.edge_triangles[atlas.folded_hinge_edges, 0]] = True
+        touches[m.edge_triangles[atlas.hinge_edges, 0]] = True
         ends = _wall_ends(atlas)
         for a, c in m.edges[m.wall_edges()]:
             for v, u in ((a, c), (c, a)):
@@ -297,7 +297,7 @@ def _hinge_inner_vertices(atlas) -> np.ndarray:
     if "hinge_inner" not in cache:
         b = atlas.open.boundary_edges
         other = np.setdiff1d(b, atlas.hinge_edges)  # walls, obstacles, the building's exits
-        cache["hinge_inner"] = np.flatnonzero(atlas.boundary_vertices(atlas.folded_hinge_edges)
+        cache["hinge_inner"] = np.flatnonzero(atlas.boundary_vertices(atlas.hinge_edges)
                                               & ~atlas.boundary_vertices(other))
     return cache["hinge_inner"]
 
@@ -311,7 +311,7 @@ def _wall_ends(atlas) -> np.ndarray:
     cache = atlas.steer._cache
     if "wall_ends" not in cache:
         m = atlas.open
-        ends = np.flatnonzero(atlas.boundary_vertices(atlas.folded_hinge_edges)
+        ends = np.flatnonzero(atlas.boundary_vertices(atlas.hinge_edges)
                               & atlas.boundary_vertices(m.wall_edges()))
         g = atlas.glued
         total = np.zeros(m.n_points)

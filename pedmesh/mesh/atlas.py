@@ -12,19 +12,21 @@ bottom edge lies where the level's plan has it and its top edge is shifted along
 the slope's length less the run's. No vector turns when it crosses a stair edge: a
 velocity or a momentum has the same components on both sides.
 
-Two meshes share the atlas's points and triangles:
+Three meshes share the atlas's points and triangles:
 
-* :attr:`Atlas.open`, a plain :class:`~pedmesh.mesh.TriMesh` on which every stair edge is an
-  exit of its own (named :data:`~pedmesh.mesh.building.HINGE_PREFIX` ...). The social force
-  model walks on it and moves a pedestrian who crosses such an exit to the other side
-  (:meth:`Atlas.hinge_of_exit`); the direction fields are built on it.
+* :attr:`Atlas.open`, a :class:`GluedMesh` on which every stair edge is an exit of its own
+  (named :data:`~pedmesh.mesh.building.HINGE_PREFIX` ...), except a flat connector's (a
+  stair without rise), which are interior edges: its group lies in one plan. The social
+  force model walks on it and moves a pedestrian who crosses such an exit to the other side
+  (:attr:`Atlas.hinges`).
 * :attr:`Atlas.glued`, a :class:`GluedMesh`, on which the two copies of a stair edge are one
   interior edge: its cells are face neighbours across the hinge and the finite volumes
   send their fluxes across it (mass is conserved to round-off), while every cell keeps the
   geometry of its own chart. :meth:`GluedMesh.cell_shift` says how far to move a cell's
   points into a neighbour's frame.
 * :attr:`Atlas.steer`, on which the stair edges are boundary edges of no kind (neither walls
-  nor exits), for the direction fields (:func:`pedmesh.eikonal.surface.atlas_direction_field`).
+  nor exits), for the direction fields (:func:`pedmesh.eikonal.surface.atlas_direction_field`;
+  :attr:`Atlas.flat_steer` with a flat connector's edges interior).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import MeshError
-from .building import piece_segments
+from .building import HINGE_PREFIX, piece_segments
 from .surface import SurfaceMesh
 from .triangle_mesh import BoundaryKind, TriMesh
 
@@ -105,6 +107,7 @@ class Atlas:
     offset: np.ndarray
     to_surface: np.ndarray
     hinges: np.ndarray
+    flat_canon: np.ndarray
 
     @property
     def n_exits(self) -> int:
@@ -113,22 +116,11 @@ class Atlas:
 
     @cached_property
     def hinge_edges(self) -> np.ndarray:
-        """The edges of :attr:`open` that are stair edges (its exits after the building's)."""
+        """The edges of :attr:`open` that are stair edges (its exits after the building's;
+        a flat connector's are interior edges)."""
         m = self.open
         b = m.boundary_edges
         return b[(m.edge_kind[b] == BoundaryKind.EXIT) & (m.edge_owner[b] >= self.n_exits)]
-
-    @cached_property
-    def folded_hinge_edges(self) -> np.ndarray:
-        """The :attr:`hinge_edges` between two flat groups
-        (:attr:`~pedmesh.mesh.surface.SurfaceMesh.piece_group`): the stair edges that are a
-        fold of the surface (or join two planes), not a flat connector's, which is no edge
-        at all for the steering."""
-        he = self.hinge_edges
-        g = self.glued
-        both = g.edge_triangles[g.find_edges(self.open.edges[he])]
-        grp = self.surface.piece_group[self.surface.piece[both]]
-        return he[grp[:, 0] != grp[:, 1]]
 
     @cached_property
     def flat_steer(self) -> tuple[TriMesh, np.ndarray] | None:
@@ -137,29 +129,19 @@ class Atlas:
         each atlas vertex; None without flat connectors. The pieces of a flat group share
         their plan in the atlas, so ``mesh`` is each group's room as one mesh, and a
         direction field on it is the flat room's."""
-        he = np.setdiff1d(self.hinge_edges, self.folded_hinge_edges)
-        if len(he) == 0:
+        if np.all(self.flat_canon == np.arange(len(self.flat_canon))):
             return None
-        s = self.surface
-        n = self.open.n_points
-        vgroup = np.empty(n, np.int64)
-        vgroup[self.open.triangles.ravel()] = np.repeat(s.piece_group[s.piece], 3)
-        # one vertex per (surface vertex, flat group): the first atlas copy
-        pair = self.to_surface * (int(vgroup.max()) + 1) + vgroup
-        _, first, inv = np.unique(pair, return_index=True, return_inverse=True)
-        rep = first[inv]
-        keep = np.unique(rep)
-        compact = np.full(n, -1, np.int64)
+        keep = np.unique(self.flat_canon)
+        compact = np.full(len(self.flat_canon), -1, np.int64)
         compact[keep] = np.arange(len(keep))
-        key = compact[rep]
+        key = compact[self.flat_canon]
         st = self.steer
-        seg_keys = np.sort(key[st.segments], axis=1)
-        he_keys = np.sort(key[self.open.edges[he]], axis=1)
-        flat_seg = np.isin(seg_keys[:, 0] * n + seg_keys[:, 1], he_keys[:, 0] * n + he_keys[:, 1])
+        inner = self.open.find_edges(st.segments)
+        solid = self.open.edge_triangles[inner, 1] < 0  # (a flat connector's: interior)
         mesh = TriMesh(points=st.points[keep], triangles=key[st.triangles],
-                       segments=key[st.segments[~flat_seg]],
-                       segment_kind=st.segment_kind[~flat_seg],
-                       segment_owner=st.segment_owner[~flat_seg], exit_names=st.exit_names,
+                       segments=key[st.segments[solid]],
+                       segment_kind=st.segment_kind[solid],
+                       segment_owner=st.segment_owner[solid], exit_names=st.exit_names,
                        obstacle_names=st.obstacle_names)
         return mesh, key
 
@@ -213,13 +195,21 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
     first = np.full(surface.n_points, -1, np.int64)
     first[to_surface[::-1]] = np.arange(len(pts))[::-1]
     canon = first[to_surface]
+    # the copies of a vertex within one flat group (a flat connector's stair edges) are one
+    # vertex of the open mesh: one per (surface vertex, group), the first atlas copy
+    vgroup = np.repeat(surface.piece_group, [p.mesh.n_points for p in pieces])
+    pair = to_surface * (int(vgroup.max()) + 1) + vgroup
+    _, first_copy, inv = np.unique(pair, return_index=True, return_inverse=True)
+    flat_canon = first_copy[inv.ravel()].astype(np.int64)
+    flat_names = {st.name for st in (surface.building.stairs if surface.building else ())
+                  if surface.building.rise(st) == 0}
     # the tagged boundary: each piece's walls, obstacles and exits; stair edges are exits of
     # the open atlas only
     exit_names = list(surface.exit_names)
     hinge_names: list[str] = []
     hinge_piece: list[int] = []
     seg, kind, owner, obstacles = [], [], [], []
-    hseg, howner = [], []
+    hseg, howner, fseg = [], [], []
     for k, p in enumerate(pieces):
         rows, stair_edges = piece_segments(p.name, p.mesh, exit_names, obstacles)
         for j, sk, so in rows:
@@ -227,6 +217,10 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
             kind.append(sk)
             owner.append(so)
         for j, name in stair_edges:
+            if name[len(HINGE_PREFIX):].rsplit(":", 1)[0] in flat_names:
+                # a flat connector's: an interior edge of the open mesh
+                fseg.append(p.mesh.segments[j] + starts[k])
+                continue
             label = f"{name}@{p.name}"
             if label not in hinge_names:
                 hinge_names.append(label)
@@ -240,7 +234,7 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
                       exit_names=tuple(exit_names), obstacle_names=tuple(obstacles),
                       canon=canon, piece=surface.piece, piece_shift=shift)
     hseg_a = np.array(hseg, np.int64).reshape(-1, 2)
-    open_mesh = TriMesh(points=pts, triangles=tri,
+    open_mesh = GluedMesh(points=pts, triangles=tri,
                         segments=np.concatenate([seg_a, hseg_a]),
                         segment_kind=np.concatenate([np.array(kind, np.int8),
                                                      np.full(len(hseg_a), BoundaryKind.EXIT,
@@ -248,15 +242,19 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
                         segment_owner=np.concatenate([np.array(owner, np.int64),
                                                       np.array(howner, np.int64)]),
                         exit_names=tuple(exit_names + hinge_names),
-                        obstacle_names=tuple(obstacles))
+                        obstacle_names=tuple(obstacles), canon=flat_canon,
+                        piece=surface.piece, piece_shift=shift)
     # the mesh for steering: the stair edges are boundary edges of no kind (neither a wall
     # nor an exit: no wall correction, no exit direction, no door jamb there)
-    steer = TriMesh(points=pts, triangles=tri, segments=open_mesh.segments,
+    fseg_a = np.array(fseg, np.int64).reshape(-1, 2)
+    steer = TriMesh(points=pts, triangles=tri,
+                    segments=np.concatenate([open_mesh.segments, fseg_a]),
                     segment_kind=np.concatenate([np.array(kind, np.int8),
-                                                 np.full(len(hseg_a), BoundaryKind.INTERIOR,
-                                                         np.int8)]),
-                    segment_owner=open_mesh.segment_owner, exit_names=tuple(exit_names),
-                    obstacle_names=tuple(obstacles))
+                                                 np.full(len(hseg_a) + len(fseg_a),
+                                                         BoundaryKind.INTERIOR, np.int8)]),
+                    segment_owner=np.concatenate([open_mesh.segment_owner,
+                                                  np.full(len(fseg_a), -1, np.int64)]),
+                    exit_names=tuple(exit_names), obstacle_names=tuple(obstacles))
     if len(glued.boundary_edges) != len(open_mesh.boundary_edges) - len(hseg_a):
         raise MeshError("the two sides of a stair edge of the atlas did not glue")
     rows = []
@@ -275,7 +273,7 @@ def build_atlas(surface: SurfaceMesh) -> Atlas:
             raise MeshError(f"stair edge {label!r} has no edges")
     hinges = np.array(rows, float).reshape(-1, 5)
     atlas = Atlas(surface=surface, open=open_mesh, glued=glued, steer=steer, offset=offset,
-                  to_surface=to_surface, hinges=hinges)
+                  to_surface=to_surface, hinges=hinges, flat_canon=flat_canon)
     surface._cache["atlas"] = atlas
     glued._cache["atlas"] = atlas
     return atlas

@@ -66,13 +66,19 @@ class MemoryWriter:
     def trajectory_frame(self, frame: int, ids: np.ndarray, points: np.ndarray,
                          frame_rate: float, description: str, *,
                          orientation: np.ndarray | None = None,
-                         walkable_wkt: str | None = None) -> None:
+                         walkable_wkt: str | None = None, z: np.ndarray | None = None,
+                         place: Sequence[str] | None = None) -> None:
         points = np.asarray(points, float).reshape(-1, 2)
-        rows = np.empty(len(points), dtype=TRAJECTORY_DTYPE)
+        building = z is not None
+        rows = np.empty(len(points), dtype=BUILDING_TRAJECTORY_DTYPE if building
+                        else TRAJECTORY_DTYPE)
         rows["id"] = np.asarray(ids, np.int64)
         rows["frame"] = frame
         rows["x"] = points[:, 0]
         rows["y"] = points[:, 1]
+        if building:
+            rows["z"] = np.asarray(z, float)
+            rows["place"] = list(place) if place is not None else ""
         self.trajectory.append(rows)
         self.frame_rate = float(frame_rate)
 
@@ -100,6 +106,9 @@ class MemoryWriter:
 #: one row of a trajectory: pedestrian id, frame number, position [m]
 TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float),
                              ("y", float)])
+#: a building's rows: also the height z [m] and the level or stair (its name)
+BUILDING_TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float),
+                                      ("y", float), ("z", float), ("place", "U64")])
 
 
 @dataclass
@@ -113,7 +122,8 @@ class MemoryResult:
       ``density``;
     * ``pedestrians``: (t [s], positions (n, 2) [m], per-pedestrian data) per frame
       (particle models);
-    * ``trajectories``: a structured array (id, frame, x [m], y [m]) at ``frame_rate``
+    * ``trajectories``: a structured array (id, frame, x [m], y [m]; on a building also z
+      [m] and place, the level or stair) at ``frame_rate``
       frames/s (particle models; frame k is at t = k / frame_rate).
     """
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -52,7 +54,7 @@ def test_build_steps_a_model(geometries_dir):
 
 
 def test_api_errors_are_clear(geometries_dir):
-    with pytest.raises(ParameterError, match="room must be a Room or the path"):
+    with pytest.raises(ParameterError, match="room must be a Room, a Building or the path"):
         pedmesh.simulate(42)
     with pytest.raises(ParameterError, match="unknown model 'sfn'"):
         pedmesh.build(geometries_dir / "l_shaped.json", model="sfn")
@@ -77,3 +79,21 @@ def test_a_run_can_skip_the_safety_measures(geometries_dir, tmp_path):
     assert "safety" in a and "safety" not in b and not (tmp_path / "b" / "safety.vtu").exists()
     assert json.loads((tmp_path / "b" / "summary.json").read_text())["t_evac_90"] == \
         a["t_evac_90"]
+
+
+def test_the_api_takes_a_building():
+    """pedmesh.build and pedmesh.simulate take a building (its file or the object): one
+    surface mesh of its levels and stairs."""
+    import pedmesh
+    from pedmesh.io import load_room
+    from pedmesh.mesh.surface import SurfaceMesh
+
+    office = Path(__file__).resolve().parents[2] / "geometries" / "office.json"
+    run = pedmesh.build(load_room(office), "eos", mesh_options={"max_area": 4.0})
+    assert isinstance(run.mesh, SurfaceMesh) and len(run.mesh.pieces) == 13
+    res = pedmesh.simulate(office, "sfm", t_end=1.0, mesh_options={"max_area": 4.0})
+    assert res.summary["n_initial"] == 300
+    tr = res.trajectories  # (in memory: with the height and the level or stair)
+    assert set(tr["place"]) >= {"ground", "fourth"} and tr["z"].max() == pytest.approx(14.0)
+    with pytest.raises(pedmesh.PedmeshError, match="exit_size"):
+        pedmesh.build(office, "eos", mesh_options={"exit_size": 0.2})

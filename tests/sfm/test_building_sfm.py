@@ -148,3 +148,34 @@ def test_stacked_floors_do_not_interact():
     both = walk(["ground", "first"])
     alone = walk(["first"])
     assert np.array_equal(both[1], alone[0])
+
+
+@pytest.mark.parametrize("preset", ["paper", "validated"])
+def test_a_flat_connector_walks_like_the_flat_room_bit_for_bit(preset):
+    """A stair without rise is no edge of the surface: its stair edges are interior edges
+    of the open atlas and the walls run on across them, so the crowd walks over it as over
+    the floor it replaces, the same numbers to the last bit as on the flat room of the same
+    triangles (every exit time, the steps)."""
+    import pedmesh
+    from pedmesh.mesh import TriMesh
+
+    crowd = StartArea("crowd", [(16, 0.5), (22, 0.5), (22, 3.5), (16, 3.5)], density=2.0)
+    b = strip(0.0, crowd)
+    s = triangulate_building(b, max_area=0.3, feature_area=None)
+    room = Room(outline=[(0, 0), (24, 0), (24, 4), (0, 4)], name="flat",
+                exits=[Exit("door", [(0, 0.5), (0, 3.5)])], start_areas=[crowd])
+    flat = TriMesh(points=s.points[:, :2], triangles=s.triangles, segments=s.segments,
+                   segment_kind=s.segment_kind, segment_owner=s.segment_owner,
+                   exit_names=s.exit_names, room=room)
+    runs = []
+    for r, m in ((b, s), (room, flat)):
+        run = pedmesh.build(r, "sfm", preset=preset, mesh=m)
+        while not run.done and run.t < 120:
+            run.step()
+        runs.append(run)
+    sb, sf = (r.summary() for r in runs)
+    assert sb["n_evacuated"] == sf["n_evacuated"] == sb["n_initial"] > 30
+    for key in ("t_evac_50", "t_evac_90", "t_evac_100", "steps"):
+        assert sb[key] == sf[key], key
+    assert np.array_equal(runs[0].sim.exit_time, runs[1].sim.exit_time)
+    assert sb["stair_edge_crossings"] == 0  # (nobody crossed an edge: there is none)

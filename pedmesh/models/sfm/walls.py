@@ -64,6 +64,9 @@ class WallSet:
         left = d[:, 0] * n_out[:, 1] - d[:, 1] * n_out[:, 0] < 0
         a = np.where(left, e[:, 0], e[:, 1])
         c = np.where(left, e[:, 1], e[:, 0])
+        # chained by the vertices the edges stand for (a building's open atlas: the two
+        # copies of a flat connector's stair-edge ends are one)
+        ka, kc = mesh._vertex_keys(a), mesh._vertex_keys(c)
         kind = mesh.edge_kind[b]
         solid = (kind == BoundaryKind.WALL) | (kind == BoundaryKind.OBSTACLE)
         n = mesh.n_points
@@ -71,14 +74,14 @@ class WallSet:
         seg_of_start = np.full(n, -1, np.int64)
         wall_ids = np.full(len(b), -1, np.int64)
         wall_ids[solid] = np.arange(solid.sum())
-        seg_of_start[a] = wall_ids
+        seg_of_start[ka] = wall_ids
         seg_of_end = np.full(n, -1, np.int64)
-        seg_of_end[c] = wall_ids
-        a, c = a[solid], c[solid]
+        seg_of_end[kc] = wall_ids
+        a, c, ka, kc = a[solid], c[solid], ka[solid], kc[solid]
         p0 = np.ascontiguousarray(mesh.points[a])
         p1 = np.ascontiguousarray(mesh.points[c])
-        prev_seg = seg_of_end[a]  # the segment ending where this one starts (-1: exit)
-        next_seg = seg_of_start[c]
+        prev_seg = seg_of_end[ka]  # the segment ending where this one starts (-1: exit)
+        next_seg = seg_of_start[kc]
         piece = _pieces(p0, p1, prev_seg, next_seg)
         # grid
         lo = mesh.points.min(axis=0) - cutoff
