@@ -20,6 +20,10 @@ median and best time per call on each thread count, and the speed-up against one
   --model sfm --preset paper --param threads=T`` per thread count, interleaved (wall time
   and CPU time of the whole process, start-up and output included).
 
+``--profile N`` (continuum): N whole steps on one thread under cProfile, each function's
+own time marked parallel (a numba kernel with ``parallel=True``) or serial: the serial share
+of a one-thread step, which bounds what more threads can buy (Amdahl).
+
 ``--threads 1,2,4``: the thread counts (default: 1, 2, 4, ... up to numba's
 ``NUMBA_NUM_THREADS``, the machine's cores). ``--json FILE``: the figures, with the
 threading layer (``numba.threading_layer()``, and what :mod:`pedmesh._threads` did to load
@@ -173,8 +177,62 @@ def continuum_cases(args):
              ("residual (above + limiter, sources)", residual),
              ("residual + implicit correction", correction), ("whole step (2 stages)", step)]
     info = {"model": args.model, "room": room.name, "cells": mesh.n_triangles,
-            "t": t, "inside": run.remaining}
+            "t": t, "inside": run.remaining, "run": run}
     return info, cases, _one_blas_thread
+
+
+#: compiled functions that only drive parallel kernels (their time is the kernels')
+PARALLEL_DRIVERS = {"conjugate_gradients"}
+
+
+def serial_profile(run, steps: int) -> dict:
+    """Where a one-thread step of the continuum run ``run`` spends its time: ``steps`` steps
+    under cProfile on one thread, each function's own time marked parallel (a numba kernel
+    compiled with ``parallel=True``, or one of :data:`PARALLEL_DRIVERS`: its loops are
+    shared by the threads) or serial
+    (everything else: the serial kernels, scipy, numpy and the Python of the step, stage
+    and route). The serial share bounds the speed-up of more threads (Amdahl)."""
+    import cProfile
+    import importlib
+    import pstats
+
+    import numba
+
+    numba.set_num_threads(1)
+    for _ in range(2):  # (compiled and warm)
+        run.step()
+    prof = cProfile.Profile()
+    a = time.perf_counter()
+    prof.enable()
+    for _ in range(steps):
+        run.step()
+    prof.disable()
+    wall = time.perf_counter() - a
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    stats = pstats.Stats(prof).stats
+    rows = []
+    for (fname, _line, func), (_cc, _nc, tt, _ct, _callers) in stats.items():
+        parallel = False
+        if "pedmesh" in fname and fname.endswith(".py"):
+            mod = fname[fname.rindex("pedmesh"):-3].replace(os.sep, ".")
+            try:
+                obj = getattr(importlib.import_module(mod), func, None)
+            except ImportError:
+                obj = None
+            parallel = (bool(getattr(obj, "targetoptions", {}).get("parallel"))
+                        or func in PARALLEL_DRIVERS)
+        where = func if "pedmesh" not in fname else f"{fname[fname.rindex('pedmesh'):]}:{func}"
+        rows.append({"function": where, "seconds": tt, "parallel": parallel})
+    total = sum(r["seconds"] for r in rows)
+    serial = sum(r["seconds"] for r in rows if not r["parallel"])
+    rows.sort(key=lambda r: -r["seconds"])
+    print(f"one-thread profile of {steps} steps: {wall:.2f} s wall, {1e3 * wall / steps:.1f} ms "
+          f"a step; serial {100 * serial / total:.1f} % of the profiled time")
+    for r in rows[:25]:
+        tag = "parallel" if r["parallel"] else "serial  "
+        print(f"  {tag} {100 * r['seconds'] / total:5.1f} %  {r['function']}")
+    return {"steps": steps, "wall_s": wall, "profiled_s": total, "serial_s": serial,
+            "serial_share": serial / total, "functions": rows[:40]}
 
 
 def sfm_cases(args):
@@ -333,6 +391,9 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=15)
     ap.add_argument("--example2", type=int, default=0, metavar="N",
                     help="also N whole Example 2 SFM processes per thread count")
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="(continuum) also profile N whole steps on one thread: the serial "
+                         "share")
     ap.add_argument("--json", default=None, help="write the figures to this file")
     args = ap.parse_args(argv)
     counts = _thread_counts(args.threads)
@@ -347,6 +408,8 @@ def main(argv=None) -> int:
     print(f"numba {numba.__version__}, threading layer '{layer}' (oneTBB "
           f"{tbb_load_status()}), NUMBA_NUM_THREADS {numba.config.NUMBA_NUM_THREADS}")
     rows = _time(cases, counts, args.repeats, context)
+    run = info.pop("run", None)
+    profile = serial_profile(run, args.profile) if args.profile and run is not None else None
     whole = example2_processes(counts, args.example2) if args.example2 else None
     if args.json:
         from _common import write_json
@@ -355,7 +418,7 @@ def main(argv=None) -> int:
             "threading_layer": layer, "tbb": tbb_load_status(),
             "numba": numba.__version__, "numba_num_threads": numba.config.NUMBA_NUM_THREADS,
             "threads": counts, "repeats": args.repeats, "state": info, "kernels": rows,
-            "example2_processes": whole})
+            "example2_processes": whole, "profile": profile})
         print(f"figures in {args.json}")
     return 0
 

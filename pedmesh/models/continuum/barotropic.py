@@ -379,7 +379,7 @@ def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
                                                            rho_cut, umax, h_rho, h_val)
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def boundary_edges(q, nx, ny, g, wall, kind, prm, xkind, xprm, rho_cut, umax, h_rho, h_val,
                    edges, lengths, F, alpha, want_alpha, exit_speed, live):
     """Wall (``wall``) or exit fluxes of ``edges`` in one pass, at each of the ``g`` points
@@ -393,37 +393,41 @@ def boundary_edges(q, nx, ny, g, wall, kind, prm, xkind, xprm, rho_cut, umax, h_
     :func:`_exit_speed` (the exit law is not the flux law). The same arithmetic as
     :func:`mirror`, :func:`rusanov`, :func:`vacuum_godunov`, :func:`_exit_speed` and
     :func:`~pedmesh.models.continuum.fv_kernels.integrate_edges` (to round-off: the compiler
-    may contract
-    other products into fused multiply-adds)."""
-    s = np.empty(3)
-    f = np.empty((2, 3))
-    for a_ in range(edges.shape[0]):
-        e = edges[a_]
-        if not live[e]:
-            F[e, 0] = F[e, 1] = F[e, 2] = 0.0
-            if want_alpha:
-                alpha[e] = 0.0
-            continue
-        am = 0.0
-        for j in range(g):
-            k = a_ * g + j
-            if wall:
-                s[0], s[1], s[2] = _mirror_point(q[k], nx[k], ny[k])
-                f[j, 0], f[j, 1], f[j, 2], _ = _rusanov_point(q[k], s, nx[k], ny[k], kind, prm,
-                                                              rho_cut, umax)
-            else:
-                f[j, 0], f[j, 1], f[j, 2] = _godunov_point(q[k], nx[k], ny[k], xkind, xprm,
-                                                           rho_cut, umax, h_rho, h_val)
-            if want_alpha:
-                if exit_speed and not wall:
-                    aj = _exit_speed_point(q[k], f[j, 0], nx[k], ny[k], rho_cut, umax)
-                else:
-                    _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm, rho_cut,
-                                                 umax)
-                am = aj if j == 0 else max(am, aj)
-        _integrate(f, g, lengths[e], F, e)
-        if want_alpha:
-            alpha[e] = am
+    may contract other products into fused multiply-adds). The edges in parallel (each
+    writes only its own rows)."""
+    k_e = edges.shape[0]
+    for c_ in nb.prange(NCHUNK):
+        s = np.empty(3)
+        f = np.empty((2, 3))
+        for b_ in range(c_, (k_e + BLOCK - 1) // BLOCK, NCHUNK):
+            for a_ in range(b_ * BLOCK, min(k_e, (b_ + 1) * BLOCK)):
+                e = edges[a_]
+                if not live[e]:
+                    F[e, 0] = F[e, 1] = F[e, 2] = 0.0
+                    if want_alpha:
+                        alpha[e] = 0.0
+                    continue
+                am = 0.0
+                for j in range(g):
+                    k = a_ * g + j
+                    if wall:
+                        s[0], s[1], s[2] = _mirror_point(q[k], nx[k], ny[k])
+                        f[j, 0], f[j, 1], f[j, 2], _ = _rusanov_point(
+                            q[k], s, nx[k], ny[k], kind, prm, rho_cut, umax)
+                    else:
+                        f[j, 0], f[j, 1], f[j, 2] = _godunov_point(
+                            q[k], nx[k], ny[k], xkind, xprm, rho_cut, umax, h_rho, h_val)
+                    if want_alpha:
+                        if exit_speed and not wall:
+                            aj = _exit_speed_point(q[k], f[j, 0], nx[k], ny[k], rho_cut,
+                                                   umax)
+                        else:
+                            _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm,
+                                                         rho_cut, umax)
+                        am = aj if j == 0 else max(am, aj)
+                _integrate(f, g, lengths[e], F, e)
+                if want_alpha:
+                    alpha[e] = am
 
 
 @nb.njit(**FAST, inline="always")

@@ -429,6 +429,50 @@ def launch_threads(a):
         a[i] = i
 
 
+#: the options of the kernels that must round as numpy does (no fused multiply-adds)
+EXACT_PAR = dict(cache=True, parallel=True)
+
+
+@nb.njit(**EXACT_PAR)
+def stage_update(Q, dt, L, V):
+    """``V = Q + dt L`` (as numpy rounds it), the cells in parallel."""
+    m, nv = Q.shape
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                for v in range(nv):
+                    V[i, v] = Q[i, v] + dt * L[i, v]
+
+
+@nb.njit(**EXACT_PAR)
+def heun_combine(Q, S, out):
+    """``out = 0.5 Q + 0.5 S`` (as numpy rounds it), the cells in parallel; returns the
+    smallest and the largest density of ``out`` and whether every entry is finite (each
+    chunk's, combined: exact, whatever the number of threads)."""
+    m, nv = Q.shape
+    lo = np.full(NCHUNK, np.inf)
+    hi = np.full(NCHUNK, -np.inf)
+    ok = np.ones(NCHUNK, np.bool_)
+    for c_ in nb.prange(NCHUNK):
+        a, b, good = np.inf, -np.inf, True
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                for v in range(nv):
+                    x = 0.5 * Q[i, v] + 0.5 * S[i, v]
+                    out[i, v] = x
+                    if not np.isfinite(x):
+                        good = False
+                r = out[i, 0]
+                if r < a:
+                    a = r
+                if r > b:
+                    b = r
+        lo[c_] = a
+        hi[c_] = b
+        ok[c_] = good
+    return lo.min(), hi.max(), ok.all()
+
+
 @nb.njit(**FAST)
 def cell_total(areas, Q):
     """``sum_i |T_i| Q[i, 0]``: the number of pedestrians in the cells [ped]. (A compiled loop,

@@ -43,8 +43,6 @@ import math
 
 import numba as nb
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.linalg import cg
 
 from .fv_kernels import BLOCK, FAST, NCHUNK, PAR, cell_edges
 from .barotropic import ISOTHERMAL, _p_c, _prim
@@ -61,6 +59,8 @@ A_IMPLICIT = 1e-2
 #: takes 4.9 iterations a solve, 1e-6 8.4 and 1e-8 12; 1e-4 and 1e-6 give T50 and T90 within
 #: 0.002 s of each other, T100 within 0.1 s, and the same orders in the tests
 CG_RTOL = 1e-4
+#: the largest number of conjugate-gradient iterations of one solve
+CG_MAXITER = 500
 
 
 def enthalpy_table(law, rho_max: float = 60.0, n: int = 12000) -> tuple[np.ndarray, np.ndarray]:
@@ -349,8 +349,7 @@ class ImplicitPressure:
         active cells ``cact`` (m,) and the live interior faces ``livef`` (faces whose cells
         are both active; see :meth:`live_faces`)."""
         a, G, imp = self._a, self._G, self._imp
-        V = np.ascontiguousarray(V)
-        Rq = np.ascontiguousarray(Rq)
+        V = np.ascontiguousarray(V)  # (Rq may be a view: the kernel reads it in place)
         _faces(V, Rq, self.L, self.R, self.nx, self.ny, self.ln, self.tau, self.areas, dt,
                self.kind, self.prm, cact, livef, A_IMPLICIT, self._W, a, G, imp)
         cells, indptr, indices, data, b, x0, scale, rho = _system(
@@ -358,16 +357,10 @@ class ImplicitPressure:
         n = len(cells)
         if n:
             # the system scaled symmetrically to a unit diagonal (Jacobi), solved by CG
-            A = sp.csr_matrix((data, indices, indptr), shape=(n, n))
-            it = [0]
-
-            def count(_):
-                it[0] += 1
-
-            y, _ = cg(A, b, x0=x0, rtol=CG_RTOL, atol=0.0, maxiter=500, callback=count)
+            y, it = conjugate_gradients(indptr, indices, data, b, x0, CG_RTOL, CG_MAXITER)
             rho[cells] = y * scale
             self.stats["solves"] += 1
-            self.stats["iterations"] += it[0]
+            self.stats["iterations"] += it
             self.stats["unknowns"] += n
         out = np.empty_like(V)
         _apply(V, rho, a, G, imp, self.L, self.R, self.nx, self.ny, self.ln, self.areas,
@@ -398,72 +391,173 @@ class ImplicitPressure:
         return live[self.interior]
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def _system(a, G, imp, V, areas, cf, cs, nbr):
     """The linear system of the implicit faces ``imp`` over the cells they couple
     (``cells``): ``(diag|T| + sum_f a_f (e_i - e_j)(e_i - e_j)^T) rho = r`` with ``r = |T| rho*``
     minus the divergence of ``G`` and of the explicit faces' pressure flux
     ``a_f (rho*_L - rho*_R)``, scaled to a unit diagonal (``D^-1/2 A D^-1/2 y = D^-1/2 r``,
     ``rho = D^-1/2 y``): CSR arrays, right-hand side, first guess and ``D^-1/2``. Also
-    ``r / |T|`` of every cell (the new density of the cells outside the system)."""
+    ``r / |T|`` of every cell (the new density of the cells outside the system).
+
+    Three passes: the cells in parallel (right-hand side, diagonal, row length), the rows
+    numbered in order (a running sum, the only serial part), the rows filled in parallel;
+    every number is computed as by one serial pass."""
     m = areas.shape[0]
     rho = np.empty(m)
     dg = np.empty(m)
+    width = np.zeros(m, np.int64)  # 1 + implicit faces of the cells in the system, else 0
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                s = areas[i] * V[i, 0]
+                d = areas[i]
+                w = 0
+                for k in range(3):
+                    f = cf[i, k]
+                    if f < 0:
+                        continue
+                    if imp[f]:
+                        s -= cs[i, k] * G[f]
+                        d += a[f]
+                        w += 1
+                    else:
+                        s -= cs[i, k] * (G[f] + cs[i, k] * a[f] * (V[i, 0] - V[nbr[i, k], 0]))
+                rho[i] = s / areas[i]
+                dg[i] = d
+                width[i] = w + 1 if w > 0 else 0
     loc = np.full(m, -1, np.int64)
     n = 0
     for i in range(m):
-        s = areas[i] * V[i, 0]
-        d = areas[i]
-        on = False
-        for k in range(3):
-            f = cf[i, k]
-            if f < 0:
-                continue
-            if imp[f]:
-                s -= cs[i, k] * G[f]
-                d += a[f]
-                on = True
-            else:
-                s -= cs[i, k] * (G[f] + cs[i, k] * a[f] * (V[i, 0] - V[nbr[i, k], 0]))
-        rho[i] = s / areas[i]
-        dg[i] = d
-        if on:
+        if width[i] > 0:
             loc[i] = n
             n += 1
     cells = np.empty(n, np.int64)
-    for i in range(m):
-        if loc[i] >= 0:
-            cells[loc[i]] = i
     indptr = np.zeros(n + 1, np.int64)
     nnz = 0
-    for r in range(n):
-        i = cells[r]
-        nnz += 1
-        for k in range(3):
-            f = cf[i, k]
-            if f >= 0 and imp[f]:
-                nnz += 1
-        indptr[r + 1] = nnz
+    for i in range(m):
+        if width[i] > 0:
+            cells[loc[i]] = i
+            nnz += width[i]
+            indptr[loc[i] + 1] = nnz
     indices = np.empty(nnz, np.int32)
     data = np.empty(nnz)
     b = np.empty(n)
     x0 = np.empty(n)
     scale = np.empty(n)
-    for r in range(n):
-        i = cells[r]
-        si = 1.0 / np.sqrt(dg[i])
-        scale[r] = si
-        p = indptr[r]
-        indices[p] = r
-        data[p] = 1.0
-        q = p + 1
-        for k in range(3):
-            f = cf[i, k]
-            if f >= 0 and imp[f]:
-                j = nbr[i, k]
-                indices[q] = loc[j]
-                data[q] = -a[f] * si / np.sqrt(dg[j])
-                q += 1
-        b[r] = rho[i] * areas[i] * si
-        x0[r] = rho[i] / si
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (n + BLOCK - 1) // BLOCK, NCHUNK):
+            for r in range(b_ * BLOCK, min(n, (b_ + 1) * BLOCK)):
+                i = cells[r]
+                si = 1.0 / np.sqrt(dg[i])
+                scale[r] = si
+                p = indptr[r]
+                indices[p] = r
+                data[p] = 1.0
+                q = p + 1
+                for k in range(3):
+                    f = cf[i, k]
+                    if f >= 0 and imp[f]:
+                        j = nbr[i, k]
+                        indices[q] = loc[j]
+                        data[q] = -a[f] * si / np.sqrt(dg[j])
+                        q += 1
+                b[r] = rho[i] * areas[i] * si
+                x0[r] = rho[i] / si
     return cells, indptr, indices, data, b, x0, scale, rho
+
+
+#: the length of the chunks of the conjugate gradients' vectors: each chunk is one task of
+#: the threads, and the dot products add the chunks' partial sums in order (fixed: the
+#: answer does not depend on the number of threads)
+CG_CHUNK = 1024
+
+
+@nb.njit(cache=True, parallel=True)
+def _cg_matvec_dot(indptr, indices, data, p, q, part):
+    """``q = A p`` (CSR, rows in their stored order) and ``p . q``."""
+    n = q.shape[0]
+    nc = (n + CG_CHUNK - 1) // CG_CHUNK
+    for c in nb.prange(nc):
+        acc = 0.0
+        for r in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
+            s = 0.0
+            for k in range(indptr[r], indptr[r + 1]):
+                s += data[k] * p[indices[k]]
+            q[r] = s
+            acc += p[r] * s
+        part[c] = acc
+    out = 0.0
+    for c in range(nc):
+        out += part[c]
+    return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _cg_update(alpha, p, q, x, r, part):
+    """``x += alpha p``, ``r -= alpha q``, and ``r . r``."""
+    n = x.shape[0]
+    nc = (n + CG_CHUNK - 1) // CG_CHUNK
+    for c in nb.prange(nc):
+        acc = 0.0
+        for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
+            x[i] += alpha * p[i]
+            ri = r[i] - alpha * q[i]
+            r[i] = ri
+            acc += ri * ri
+        part[c] = acc
+    out = 0.0
+    for c in range(nc):
+        out += part[c]
+    return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _cg_direction(r, beta, p):
+    """``p = r + beta p``."""
+    n = p.shape[0]
+    nc = (n + CG_CHUNK - 1) // CG_CHUNK
+    for c in nb.prange(nc):
+        for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
+            p[i] = r[i] + beta * p[i]
+
+
+@nb.njit(cache=True)
+def conjugate_gradients(indptr, indices, data, b, x0, rtol, maxiter):
+    """The symmetric positive definite system ``A x = b`` (CSR; scaled to a unit diagonal,
+    so unpreconditioned) by conjugate gradients from ``x0``, until ``|r| < rtol |b|`` (as
+    :func:`scipy.sparse.linalg.cg`): ``(x, iterations)``. Three parallel passes an
+    iteration (the product with its dot product, the updates with theirs, the new
+    direction); every dot product adds fixed chunks in order: the same answer on any
+    number of threads."""
+    n = b.shape[0]
+    part = np.empty((n + CG_CHUNK - 1) // CG_CHUNK + 1)
+    x = x0.copy()
+    q = np.empty(n)
+    _cg_matvec_dot(indptr, indices, data, x, q, part)
+    r = np.empty(n)
+    bb = 0.0
+    rr = 0.0
+    for i in range(n):
+        r[i] = b[i] - q[i]
+    for c in range((n + CG_CHUNK - 1) // CG_CHUNK):  # (the same chunked sums, in order)
+        sb = 0.0
+        sr = 0.0
+        for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
+            sb += b[i] * b[i]
+            sr += r[i] * r[i]
+        bb += sb
+        rr += sr
+    tol = rtol * np.sqrt(bb)
+    p = r.copy()
+    it = 0
+    while it < maxiter and not np.sqrt(rr) < tol:
+        pq = _cg_matvec_dot(indptr, indices, data, p, q, part)
+        alpha = rr / pq
+        rr_new = _cg_update(alpha, p, q, x, r, part)
+        it += 1
+        if np.sqrt(rr_new) < tol:
+            break
+        _cg_direction(r, rr_new / rr, p)
+        rr = rr_new
+    return x, it

@@ -578,28 +578,31 @@ class FVSolver:
             Q = self.model.split_source(Q, 0.5 * dt)
         Q1, o0 = self._stage(Q, t, dt)
         S1, o1 = self._stage(Q1, t + dt, dt)
-        if self.stages == 2:  # Heun
-            Qn = 0.5 * Q + 0.5 * S1
+        if self.stages == 2:  # Heun (one pass on the threads: the sum, its range, finite)
+            Qn = np.empty_like(Q)
+            rho_lo, rho_hi, finite = K.heun_combine(Q, S1, Qn)
             flow = 0.5 * (o0 + o1)
         else:
             Q2 = 0.75 * Q + 0.25 * S1
             S2, o2 = self._stage(Q2, t + 0.5 * dt, dt)
             Qn = Q / 3.0 + 2.0 / 3.0 * S2
             flow = (o0 + o1 + 4.0 * o2) / 6.0
+            rho_lo, rho_hi, finite = float(Qn[:, 0].min()), float(Qn[:, 0].max()), None
         # the stages keep rho >= 0 exactly; their convex combination can leave round-off
         # negatives (1e-40) in emptied cells: set those to zero (mass change ~1e-40)
-        neg = Qn[:, 0] < 0.0
-        if np.any(neg):
-            tiny = neg & (Qn[:, 0] > -1e-12 * max(float(Qn[:, 0].max()), 1.0))
+        if rho_lo < 0.0:
+            neg = Qn[:, 0] < 0.0
+            tiny = neg & (Qn[:, 0] > -1e-12 * max(float(rho_hi), 1.0))
             Qn[tiny] = 0.0
         if split:
             Qn = self.model.split_source(Qn, 0.5 * dt)
+            finite = None
         state.Q = Qn
         state.outflow = state.outflow + dt * flow
         state.last_exit_flux = flow
         state.t = t + dt
         state.steps += 1
-        if not np.all(np.isfinite(state.Q)):
+        if not (finite if finite is not None else np.all(np.isfinite(state.Q))):
             raise SimulationError(f"non-finite state at t = {state.t:.3f} s; "
                                   + _blow_up_advice(self.model, self.cfl))
 
@@ -608,7 +611,8 @@ class FVSolver:
         explicit stage, then the implicit pressure correction of a semi-implicit step) and
         the exit mass flux per exit [ped/s]."""
         L, out = self.residual(Q, t, dt)
-        V = Q + dt * L
+        V = np.empty_like(Q)
+        K.stage_update(Q, dt, L, V)
         if self.implicit is not None:
             if self._live_faces is None:
                 self._live_faces = self.implicit.live_faces(self.live)
