@@ -192,8 +192,11 @@ def _cloud(pts: np.ndarray, point_data: ArrayMap):
     v`` builds it (the first field the active scalars; an empty cloud keeps every field's
     name, type and components, with no rows): the same file, without pyvista's objects and
     imports."""
-    from vtkmodules.util.numpy_support import (get_vtk_array_type, numpy_to_vtk,
-                                               numpy_to_vtkIdTypeArray)
+    from vtkmodules.util.numpy_support import (
+        get_vtk_array_type,
+        numpy_to_vtk,
+        numpy_to_vtkIdTypeArray,
+    )
     from vtkmodules.vtkCommonCore import vtkDataArray, vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 

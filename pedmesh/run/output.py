@@ -390,8 +390,8 @@ def _insert_rows(con: sqlite3.Connection, table: str, width: int, frame: int,
         con.executemany(f"INSERT INTO {table} VALUES " + ", ".join([row] * _INSERT_ROWS),
                         [values[k * step:(k + 1) * step] for k in range(full)])
     if rest:
-        con.execute(f"INSERT INTO {table} VALUES " + ", ".join([row] * rest),
-                    values[full * step:])
+        con.executemany(f"INSERT INTO {table} VALUES " + ", ".join([row] * rest),
+                        [values[full * step:]])
 
 
 class RunWriter:
