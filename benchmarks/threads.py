@@ -18,7 +18,11 @@ median and best time per call on each thread count, and the speed-up against one
   ``Simulation.step`` (with the route solve when it is due).
 * ``--example2 N``: also N whole processes ``pedmesh run geometries/example2.json
   --model sfm --preset paper --param threads=T`` per thread count, interleaved (wall time
-  and CPU time of the whole process, start-up and output included).
+  and CPU time of the whole process, start-up and output included). ``--against DIR``:
+  another checkout of pedmesh (``git worktree add ../old main``) run alternately with this
+  one (A/B), each run's output compared byte for byte with the other checkout's;
+  ``--split``: the time of each part of the output (trajectories, VTK frames, kernel
+  outflow, ...) in each process. ``--skip-kernels``: only the processes.
 
 ``--profile N`` (continuum): N whole steps on one thread under cProfile, each function's
 own time marked parallel (a numba kernel with ``parallel=True``) or serial: the serial share
@@ -31,6 +35,7 @@ oneTBB) and the machine.
 
     python benchmarks/threads.py [--model eos|sfm] [--room FILE] [--threads 1,2]
                                  [--warm S] [--repeats 15] [--example2 N] [--json FILE]
+                                 [--against DIR] [--split] [--skip-kernels]
 
 Results are bitwise the same on any thread count (tests/continuum/test_parallel.py,
 tests/sfm/test_sfm_parallel.py); this script measures only the time.
@@ -43,6 +48,7 @@ import dataclasses
 import json
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
@@ -335,45 +341,147 @@ def sfm_cases(args):
     return info, cases, None
 
 
-def example2_processes(counts, repeats) -> list[dict]:
+#: run inside an Example 2 process with ``--split``: ``pedmesh run`` with timers around the
+#: parts of the output (the wrapped names exist in every version since the run protocol)
+_SPLIT = r"""
+import functools, json, os, sys, time
+t_start = time.perf_counter()
+from pedmesh.models.sfm.adapter import SFMRun
+from pedmesh.run.output import RunWriter
+from pedmesh.run import driver
+acc = {}
+def wrap(owner, name, key):
+    f = getattr(owner, name)
+    @functools.wraps(f)
+    def g(*a, **k):
+        t0 = time.perf_counter()
+        try:
+            return f(*a, **k)
+        finally:
+            acc[key] = acc.get(key, 0.0) + time.perf_counter() - t0
+    setattr(owner, name, g)
+wrap(SFMRun, "step", "steps")
+wrap(SFMRun, "_trajectory_frame", "trajectories")
+wrap(SFMRun, "kernel_outflow", "kernel outflow")
+wrap(SFMRun, "record", "record")
+wrap(SFMRun, "write_frame", "vtk frames")
+wrap(RunWriter, "pedestrian_frame", "pedestrians.pvd")
+wrap(RunWriter, "density_frame", "density.pvd")
+wrap(driver, "_safety", "safety")
+from pedmesh.cli import main
+try:
+    rc = main(sys.argv[1:])
+finally:
+    acc["exits.csv etc."] = acc.get("record", 0.0) - acc.get("trajectories", 0.0) \
+        - acc.get("kernel outflow", 0.0)
+    acc["process"] = time.perf_counter() - t_start
+    with open(os.environ["PEDMESH_SPLIT_JSON"], "w") as f:
+        json.dump(acc, f)
+sys.exit(rc)
+"""
+#: the parts printed with ``--split`` (seconds per process)
+_PARTS = ("steps", "trajectories", "vtk frames", "pedestrians.pvd", "density.pvd",
+          "kernel outflow", "exits.csv etc.", "safety", "process")
+#: summary.json's fields that differ between two runs of the same thing
+_VOLATILE = {"wall_time_s", "time_split_s", "pid"}
+
+
+def _same_output(a: Path, b: Path) -> list[str]:
+    """The files in which run folders ``a`` and ``b`` differ (every file byte for byte,
+    summary.json without its wall times and process id)."""
+    def files(d):
+        return {p.relative_to(d).as_posix(): p for p in sorted(d.rglob("*"))
+                if p.is_file() and p.name != ".lock"}
+
+    fa, fb = files(a), files(b)
+    bad = sorted(set(fa) ^ set(fb))
+    for name in sorted(set(fa) & set(fb)):
+        if name == "summary.json":
+            sa, sb = (json.loads(f[name].read_text()) for f in (fa, fb))
+            if any(sa.get(k) != sb.get(k) for k in set(sa) | set(sb) if k not in _VOLATILE):
+                bad.append(name)
+        elif fa[name].read_bytes() != fb[name].read_bytes():
+            bad.append(name)
+    return bad
+
+
+def example2_processes(counts, repeats, *, against: str | None = None,
+                       split: bool = False) -> list[dict]:
     """Whole ``pedmesh run`` processes of Example 2 (SFM, paper preset) on each thread
-    count, interleaved; wall and CPU time (user + system) of each."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])]))
-    times = {t: [] for t in counts}
-    cpu = {t: [] for t in counts}
+    count, interleaved; wall and CPU time (user + system) of each. ``against``: another
+    checkout of pedmesh (``git worktree add``) run alternately with this one, A/B, each
+    run's output compared byte for byte with the other checkout's on the same thread
+    count. ``split``: the time of each part of the output in each process (timers around
+    the model's record and frame methods)."""
+    trees = [("this", ROOT)] + ([("against", Path(against).resolve())] if against else [])
+    times = {(k, t): [] for k, _ in trees for t in counts}
+    cpu = {key: [] for key in times}
+    parts = {key: [] for key in times}
     summaries = {}
-    print(f"Example 2 (sfm, paper), whole processes, {repeats} per thread count, interleaved")
+    differ: dict[tuple, list[str]] = {}
+    print(f"Example 2 (sfm, paper), whole processes, {repeats} per thread count"
+          + (f" and checkout ({ROOT} and {trees[1][1]})" if against else "") + ", interleaved")
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(repeats):
-            for t in counts:
-                out = Path(tmp) / f"r{r}-t{t}"
-                cmd = [sys.executable, "-m", "pedmesh", "run",
-                       str(ROOT / "geometries" / "example2.json"), "--model", "sfm",
-                       "--preset", "paper", "--param", f"threads={t}", "--out", str(out), "-q"]
-                before = resource.getrusage(resource.RUSAGE_CHILDREN)
-                a = time.perf_counter()
-                subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL)
-                times[t].append(time.perf_counter() - a)
-                after = resource.getrusage(resource.RUSAGE_CHILDREN)
-                cpu[t].append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
-                s = json.loads((out / "summary.json").read_text())
-                summaries.setdefault(t, set()).add((s["t_evac_50"], s["t_evac_90"],
-                                                    s["t_evac_100"], s["steps"]))
-                print(f"  run {r + 1}, {t} thread(s): {times[t][-1]:6.1f} s wall, "
-                      f"{cpu[t][-1]:6.1f} s CPU", flush=True)
+            for label, root in (trees if r % 2 == 0 else trees[::-1]):
+                env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+                    [str(root), *filter(None, [os.environ.get("PYTHONPATH")])]))
+                for t in counts:
+                    out = Path(tmp) / f"{label}-r{r}-t{t}"
+                    args = [str(ROOT / "geometries" / "example2.json"), "--model", "sfm",
+                            "--preset", "paper", "--param", f"threads={t}", "--out",
+                            str(out), "-q"]
+                    cmd = [sys.executable, *(["-c", _SPLIT, "run"] if split else
+                                             ["-m", "pedmesh", "run"]), *args]
+                    env["PEDMESH_SPLIT_JSON"] = str(out) + ".json"
+                    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    a = time.perf_counter()
+                    subprocess.run(cmd, check=True, env=env, stdout=subprocess.DEVNULL,
+                                   cwd=tmp)
+                    times[label, t].append(time.perf_counter() - a)
+                    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                    cpu[label, t].append(after.ru_utime - before.ru_utime + after.ru_stime
+                                         - before.ru_stime)
+                    if split:
+                        parts[label, t].append(json.loads(Path(env["PEDMESH_SPLIT_JSON"])
+                                                          .read_text()))
+                    s = json.loads((out / "summary.json").read_text())
+                    summaries.setdefault(t, set()).add((s["t_evac_50"], s["t_evac_90"],
+                                                        s["t_evac_100"], s["steps"]))
+                    print(f"  run {r + 1}, {label}, {t} thread(s): {times[label, t][-1]:6.1f} s "
+                          f"wall, {cpu[label, t][-1]:6.1f} s CPU", flush=True)
+            for t in counts:  # this checkout's output against the other's, then drop both
+                first = Path(tmp) / f"this-r{r}-t{t}"
+                if against:
+                    differ[r, t] = _same_output(first, Path(tmp) / f"against-r{r}-t{t}")
+            for d in Path(tmp).iterdir():
+                if d.is_dir():
+                    shutil.rmtree(d)
     same = len({x for v in summaries.values() for x in v}) == 1
     rows = []
-    for t in counts:
-        med, best = statistics.median(times[t]), min(times[t])
-        row = {"threads": t, "wall_s": times[t], "cpu_s": cpu[t], "median_s": med,
-               "best_s": best, "ratio_median": med / statistics.median(times[1]),
-               "ratio_best": best / min(times[1])}
-        rows.append(row)
-        print(f"  {t} thread(s): median {med:6.1f} s, best {best:6.1f} s, CPU median "
-              f"{statistics.median(cpu[t]):6.1f} s; x{row['ratio_median']:.2f} median, "
-              f"x{row['ratio_best']:.2f} best")
+    for label, _ in trees:
+        for t in counts:
+            v, v1 = times[label, t], times[label, counts[0]]
+            med, best = statistics.median(v), min(v)
+            row = {"checkout": label, "threads": t, "wall_s": v, "cpu_s": cpu[label, t],
+                   "median_s": med, "best_s": best,
+                   "ratio_median": med / statistics.median(v1), "ratio_best": best / min(v1)}
+            if split:
+                row["parts_s"] = {k: [p.get(k, 0.0) for p in parts[label, t]] for k in _PARTS}
+            rows.append(row)
+            print(f"  {label}, {t} thread(s): median {med:6.1f} s, best {best:6.1f} s, CPU "
+                  f"median {statistics.median(cpu[label, t]):6.1f} s; x{row['ratio_median']:.2f}"
+                  f" median, x{row['ratio_best']:.2f} best (against {counts[0]} thread)")
+            if split:
+                for k in _PARTS:
+                    x = row["parts_s"][k]
+                    print(f"      {k:<18} median {statistics.median(x):6.2f} s, best "
+                          f"{min(x):6.2f} s")
     print(f"  T50/T90/T100/steps the same on every run: {same}")
+    if against:
+        bad = {k: v for k, v in differ.items() if v}
+        print("  output the same byte for byte as the other checkout's on every run: "
+              + ("yes" if not bad else f"NO: {bad}"))
     return rows
 
 
@@ -394,10 +502,20 @@ def main(argv=None) -> int:
     ap.add_argument("--profile", type=int, default=0, metavar="N",
                     help="(continuum) also profile N whole steps on one thread: the serial "
                          "share")
+    ap.add_argument("--against", default=None, metavar="DIR",
+                    help="with --example2: also run another checkout of pedmesh (e.g. a git "
+                    "worktree of main), alternately, and compare the outputs byte for byte")
+    ap.add_argument("--split", action="store_true",
+                    help="with --example2: time the parts of the output in each process")
+    ap.add_argument("--skip-kernels", action="store_true",
+                    help="only the --example2 processes (no kernel timings)")
     ap.add_argument("--json", default=None, help="write the figures to this file")
     args = ap.parse_args(argv)
     counts = _thread_counts(args.threads)
-    if args.model in ("sfm", "sf", "social-force"):
+    info, cases, context = {}, [], None
+    if args.skip_kernels:
+        pass
+    elif args.model in ("sfm", "sf", "social-force"):
         info, cases, context = sfm_cases(args)
     else:
         info, cases, context = continuum_cases(args)
@@ -407,10 +525,11 @@ def main(argv=None) -> int:
     layer = threading_layer()
     print(f"numba {numba.__version__}, threading layer '{layer}' (oneTBB "
           f"{tbb_load_status()}), NUMBA_NUM_THREADS {numba.config.NUMBA_NUM_THREADS}")
-    rows = _time(cases, counts, args.repeats, context)
+    rows = _time(cases, counts, args.repeats, context) if cases else []
     run = info.pop("run", None)
     profile = serial_profile(run, args.profile) if args.profile and run is not None else None
-    whole = example2_processes(counts, args.example2) if args.example2 else None
+    whole = example2_processes(counts, args.example2, against=args.against,
+                               split=args.split) if args.example2 else None
     if args.json:
         from _common import write_json
 

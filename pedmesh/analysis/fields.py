@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -10,21 +11,51 @@ from ..parameters import DEFAULTS as D
 
 __all__ = ["kernel_density", "kernel_velocity", "vertex_to_cell"]
 
+#: kernel_density's cut-off in units of R
+_DENSITY_CUTOFF = 3.0
+
 
 def _pairs(positions, points, cutoff):
-    """(pedestrian index, point index, distance) of all pairs closer than ``cutoff``."""
+    """(pedestrian index, point index, distance) of all pairs closer than ``cutoff``, by
+    point and then by pedestrian (the lists of a query of several points are sorted)."""
     from scipy.spatial import cKDTree
 
     lists = cKDTree(positions).query_ball_point(points, cutoff)
-    counts = np.fromiter((len(lst) for lst in lists), np.int64, len(lists))
+    counts = np.fromiter(map(len, lists), np.int64, len(lists))
     col = np.repeat(np.arange(len(points)), counts)
-    row = np.fromiter((j for lst in lists for j in lst), np.int64, int(counts.sum()))
+    row = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(counts.sum()))
     d = np.hypot(*(positions[row] - points[col]).T) if len(row) else np.zeros(0)
     return row, col, d
 
 
+def _weights(d: np.ndarray, R: float) -> np.ndarray:
+    """The kernel's weights ``exp(-(d / R)^2)`` of the distances ``d`` [m]."""
+    return np.exp(-(d / R) ** 2)
+
+
+def _density(n: int, col: np.ndarray, w: np.ndarray, R: float) -> np.ndarray:
+    """Kernel density [ped/m^2] at ``n`` points from the weights ``w`` of their pairs."""
+    out = np.zeros(n)
+    np.add.at(out, col, w / (math.pi * R * R))
+    return out
+
+
+def _velocity(n: int, row: np.ndarray, col: np.ndarray, w: np.ndarray,
+              vel: np.ndarray) -> np.ndarray:
+    """Kernel-averaged velocity [m/s] at ``n`` points from the weights ``w`` of their pairs
+    (zero where there are none)."""
+    num = np.zeros((n, 2))
+    den = np.zeros(n)
+    np.add.at(den, col, w)
+    np.add.at(num, col, w[:, None] * vel[row])
+    out = np.zeros_like(num)
+    ok = den > 0
+    out[ok] = num[ok] / den[ok, None]
+    return out
+
+
 def kernel_density(*, positions: np.ndarray, points: np.ndarray, R: float = D['R'],
-                   cutoff: float = 3.0) -> np.ndarray:
+                   cutoff: float = _DENSITY_CUTOFF) -> np.ndarray:
     """Gaussian kernel density (paper eq3, eq4) [ped/m^2] of pedestrians at ``points``.
 
     ``rho(x) = sum_j exp(-|x_j - x|^2 / R^2) / (pi R^2)``, truncated at ``cutoff * R``
@@ -45,8 +76,7 @@ def kernel_density(*, positions: np.ndarray, points: np.ndarray, R: float = D['R
     if len(pos) == 0 or len(pts) == 0:
         return out
     row, col, d = _pairs(pos, pts, cutoff * R)
-    np.add.at(out, col, np.exp(-(d / R) ** 2) / (math.pi * R * R))
-    return out
+    return _density(len(pts), col, _weights(d, R), R)
 
 
 def kernel_velocity(*, positions: np.ndarray, velocities: np.ndarray, points: np.ndarray,
@@ -58,17 +88,10 @@ def kernel_velocity(*, positions: np.ndarray, velocities: np.ndarray, points: np
     pos = np.asarray(positions, float).reshape(-1, 2)
     vel = np.asarray(velocities, float).reshape(-1, 2)
     pts = np.asarray(points, float).reshape(-1, 2)
-    num = np.zeros((len(pts), 2))
-    den = np.zeros(len(pts))
-    if len(pos) and len(pts):
-        row, col, d = _pairs(pos, pts, cutoff * R)
-        w = np.exp(-(d / R) ** 2)
-        np.add.at(den, col, w)
-        np.add.at(num, col, w[:, None] * vel[row])
-    out = np.zeros_like(num)
-    ok = den > 0
-    out[ok] = num[ok] / den[ok, None]
-    return out
+    if not (len(pos) and len(pts)):
+        return np.zeros((len(pts), 2))
+    row, col, d = _pairs(pos, pts, cutoff * R)
+    return _velocity(len(pts), row, col, _weights(d, R), vel)
 
 
 def vertex_to_cell(*, mesh, values: np.ndarray) -> np.ndarray:

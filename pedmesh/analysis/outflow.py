@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fields import kernel_density, kernel_velocity
+from .fields import _DENSITY_CUTOFF, _density, _pairs, _velocity, _weights
 from ..parameters import DEFAULTS as D
 
 __all__ = ["exit_gauss_points", "continuum_outflow", "particle_outflow", "crossing_rate"]
@@ -39,10 +39,21 @@ def particle_outflow(*, mesh, positions: np.ndarray, velocities: np.ndarray,
     """Outflow [ped/s] through each exit of a particle crowd, from the kernel density and the
     kernel-averaged velocity at the exit (the paper's definition for the particle model)."""
     out = np.zeros(len(mesh.exit_names))
+    pos = np.asarray(positions, float).reshape(-1, 2)
+    vel = np.asarray(velocities, float).reshape(-1, 2)
     for k in range(len(out)):
         pts, w, n, _ = exit_gauss_points(mesh=mesh, exit=k)
-        rho = kernel_density(positions=positions, points=pts, R=R)
-        u = kernel_velocity(positions=positions, velocities=velocities, points=pts, R=R)
+        if len(pos) == 0 or len(pts) == 0:
+            rho, u = np.zeros(len(pts)), np.zeros((len(pts), 2))
+        else:  # kernel_density and kernel_velocity at the exit's points, from one
+            # neighbour search and one set of weights where their cut-offs are the same
+            row, col, d = _pairs(pos, pts, _DENSITY_CUTOFF * R)
+            kw = _weights(d, R)
+            rho = _density(len(pts), col, kw, R)
+            if D['density_cutoff'] != _DENSITY_CUTOFF:
+                row, col, d = _pairs(pos, pts, D['density_cutoff'] * R)
+                kw = _weights(d, R)
+            u = _velocity(len(pts), row, col, kw, vel)
         out[k] = np.sum(w * rho * np.einsum("ij,ij->i", u, n))
     return out
 

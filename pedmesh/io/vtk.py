@@ -1,6 +1,6 @@
 """VTK output that ParaView opens: ``.vtu`` meshes (meshio; the frames of a time series
-through VTK's own writer, LZ4-compressed), ``.vtp`` point clouds (pyvista) and ``.pvd``
-time-series collections.
+through VTK's own writer, LZ4-compressed), ``.vtp`` point clouds (VTK's writer, the bytes
+pyvista writes) and ``.pvd`` time-series collections.
 
 2-D vector fields, shape (n, 2), are written with a zero third component so that ParaView
 can draw them as glyphs. pyvista reads PVD but does not write it, so the small PVD writer
@@ -186,33 +186,61 @@ def _vtk_write(writer, path: Path) -> None:
                   str(path))
 
 
-def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None) -> Path:
-    """Write a point cloud [m] (n, 2) at z = 0, or (n, 3) in 3-D (a building's), with
-    per-point fields to a ``.vtp`` file (pyvista)."""
-    import pyvista as pv
+def _cloud(pts: np.ndarray, point_data: ArrayMap):
+    """A VTK point cloud (one vertex cell per point) of ``pts`` (n, 3) with these fields,
+    built with VTK's own classes as pyvista's ``PolyData(pts)`` with ``point_data[k] =
+    v`` builds it (the first field the active scalars; an empty cloud keeps every field's
+    name, type and components, with no rows): the same file, without pyvista's objects and
+    imports."""
+    from vtkmodules.util.numpy_support import (
+        get_vtk_array_type,
+        numpy_to_vtk,
+        numpy_to_vtkIdTypeArray,
+    )
+    from vtkmodules.vtkCommonCore import vtkDataArray, vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
-    pts = np.asarray(points, dtype=float)
-    pts = pts.reshape(-1, 3) if pts.ndim == 2 and pts.shape[1] == 3 else pts.reshape(-1, 2)
-    cloud = pv.PolyData(pts if pts.shape[1] == 3 else np.column_stack([pts, np.zeros(len(pts))]))
-    if len(pts):
-        cloud.verts = np.column_stack([np.ones(len(pts), np.int64), np.arange(len(pts))]).ravel()
+    n = len(pts)
+    vtk_pts = vtkPoints()
+    vtk_pts.SetData(numpy_to_vtk(np.ascontiguousarray(pts), deep=True))
+    cloud = vtkPolyData()
+    cloud.SetPoints(vtk_pts)
+    verts = vtkCellArray()
+    if n:  # offsets and connectivity as Int64 arrays (pyvista's legacy-format verts)
+        verts.SetData(numpy_to_vtk(np.arange(n + 1, dtype=np.int64), deep=True),
+                      numpy_to_vtk(np.arange(n, dtype=np.int64), deep=True))
+    else:  # (pyvista's empty cloud: fixed-size storage of no vertices)
+        verts.SetData(1, numpy_to_vtkIdTypeArray(np.zeros(0, np.int64), deep=True))
+    cloud.SetVerts(verts)
+    pd = cloud.GetPointData()
     for k, v in (point_data or {}).items():
-        v = _pad3(v)
-        if len(pts):
-            cloud.point_data[k] = v
-        else:  # an empty frame keeps every array (name, type, components) with no rows
-            from vtkmodules.util.numpy_support import get_vtk_array_type
-            from vtkmodules.vtkCommonCore import vtkDataArray
-
-            arr = vtkDataArray.CreateDataArray(get_vtk_array_type(np.asarray(v).dtype))
+        v = np.asarray(_pad3(v))
+        if n:
+            arr = numpy_to_vtk(np.ascontiguousarray(v), deep=True)
+        else:
+            arr = vtkDataArray.CreateDataArray(get_vtk_array_type(v.dtype))
             arr.SetNumberOfComponents(int(np.prod(np.shape(v)[1:], dtype=np.int64)) or 1)
             arr.SetNumberOfTuples(0)
-            arr.SetName(k)
-            cloud.GetPointData().AddArray(arr)
+        arr.SetName(k)
+        pd.AddArray(arr)
+        if n and pd.GetScalars() is None:
+            pd.SetActiveScalars(k)
+    return cloud
+
+
+def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None) -> Path:
+    """Write a point cloud [m] (n, 2) at z = 0, or (n, 3) in 3-D (a building's), with
+    per-point fields to a ``.vtp`` file (VTK's XML writer, zlib-compressed binary; the
+    bytes pyvista's ``save(binary=True)`` writes)."""
+    pts = np.asarray(points, dtype=float)
+    pts = pts.reshape(-1, 3) if pts.ndim == 2 and pts.shape[1] == 3 else pts.reshape(-1, 2)
+    if pts.shape[1] == 2:
+        pts = np.column_stack([pts, np.zeros(len(pts))])
+    cloud = _cloud(pts, point_data)
     path = Path(path)
     tmp = path.with_name(path.stem + ".part.vtp")
     # VTK's XML writer as pyvista's save(binary=True) sets it up (the same bytes), run
-    # here so that a failed write is seen (pyvista's save only checks that a file exists)
+    # here so that a failed write is seen
     from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
     w = vtkXMLPolyDataWriter()

@@ -44,6 +44,7 @@ from .._version import __version__
 from ..analysis.evacuation import evacuation_times, evacuation_times_from_curve
 from ..errors import PedmeshError
 from ..io.vtk import PVDWriter
+from ._rows import format_rows
 
 #: the files of a run folder and what each holds (``pedmesh run --help`` and the docs print
 #: this list); "(particle models)" marks those only particle models write
@@ -363,6 +364,36 @@ def _csv_line(fields: Sequence[Any]) -> str:
     return buf.getvalue()
 
 
+#: rows of one multi-row INSERT of trajectories.sqlite (6 values each: well below SQLite's
+#: limit of 32,766 bound values per statement)
+_INSERT_ROWS = 256
+
+
+def _insert_rows(con: sqlite3.Connection, table: str, width: int, frame: int,
+                 ids: np.ndarray, *columns: np.ndarray) -> None:
+    """Insert the rows ``(frame, id, *columns)`` into ``table`` in their order, as
+    statements of :data:`_INSERT_ROWS` rows each (``INSERT ... VALUES (...), (...)``: the
+    same rows, rowids and file as one INSERT per row, in half the time)."""
+    n = len(ids)
+    if n == 0:
+        return
+    flat = np.empty((n, width), object)
+    flat[:, 0] = frame
+    flat[:, 1] = ids.tolist()
+    for k, c in enumerate(columns):
+        flat[:, 2 + k] = np.asarray(c).tolist()
+    values = flat.ravel().tolist()
+    row = "(" + ", ".join("?" * width) + ")"
+    full, rest = divmod(n, _INSERT_ROWS)
+    step = width * _INSERT_ROWS
+    if full:
+        con.executemany(f"INSERT INTO {table} VALUES " + ", ".join([row] * _INSERT_ROWS),
+                        [values[k * step:(k + 1) * step] for k in range(full)])
+    if rest:
+        con.executemany(f"INSERT INTO {table} VALUES " + ", ".join([row] * rest),
+                        [values[full * step:]])
+
+
 class RunWriter:
     """Incremental writer of one run's output directory (see module docstring).
 
@@ -542,17 +573,18 @@ class RunWriter:
             z = np.asarray(z, float).reshape(-1)
             lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f} {h:.4f} {w}\n"
                             for i, p, h, w in zip(ids, points, z, place))
-        else:
-            lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f}\n"
-                            for i, p in zip(ids, points))
+        else:  # compiled, the same bytes as Python's f"{x:.4f}" (None: left to Python)
+            lines = format_rows(ids, frame, points)
+            if lines is None:
+                lines = "".join(f"{i} {frame} {x:.4f} {y:.4f}\n"
+                                for i, x, y in zip(ids.tolist(), points[:, 0].tolist(),
+                                                   points[:, 1].tolist()))
         self._append(self._traj, lines)
         ori = np.zeros_like(points) if orientation is None else np.asarray(orientation, float)
         con = self._sql
         try:
-            con.executemany("INSERT INTO trajectory_data VALUES (?, ?, ?, ?, ?, ?)",
-                            zip([frame] * len(ids), ids.tolist(), points[:, 0].tolist(),
-                                points[:, 1].tolist(), ori[:, 0].tolist(),
-                                ori[:, 1].tolist()))
+            _insert_rows(con, "trajectory_data", 6, frame, ids, points[:, 0], points[:, 1],
+                         ori[:, 0], ori[:, 1])
             if building:
                 con.executemany("INSERT INTO place_data VALUES (?, ?, ?, ?)",
                                 zip([frame] * len(ids), ids.tolist(), z.tolist(), list(place)))
