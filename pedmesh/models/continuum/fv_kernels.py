@@ -157,32 +157,49 @@ def velocity_bounds(Q, nbr, rho_cut, lo, hi, active, cact):
                             hi[i, d] = u
 
 
-@nb.njit(**FAST)
+@nb.njit(**PAR)
 def active_set(Q, nbr, e2t, eps, rings, cact, live):
     """The active set of a step: the cells with a density above ``eps`` [ped/m^2] and those
     within ``rings`` face neighbours of them (``cact`` (m,)), and the live edges, whose
-    cells are all active (``live`` (n_edges,)). Returns the number of active cells."""
+    cells are all active (``live`` (n_edges,)). Returns the number of active cells. Each
+    pass is a map over the cells or edges, on the threads."""
     m = Q.shape[0]
-    for i in range(m):
-        cact[i] = Q[i, 0] > eps
+    nb_ = (m + BLOCK - 1) // BLOCK
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, nb_, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                cact[i] = Q[i, 0] > eps
     new = np.empty(m, np.bool_)
     for _ in range(rings):
-        for i in range(m):
-            new[i] = cact[i]
-            if not cact[i]:
-                for k in range(3):
-                    j = nbr[i, k]
-                    if j >= 0 and cact[j]:
-                        new[i] = True
-                        break
-        cact[:] = new
-    for e in range(e2t.shape[0]):
-        r = e2t[e, 1]
-        live[e] = cact[e2t[e, 0]] and (r < 0 or cact[r])
-    n = 0
-    for i in range(m):
-        n += cact[i]
-    return n
+        for c_ in nb.prange(NCHUNK):
+            for b_ in range(c_, nb_, NCHUNK):
+                for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                    on = cact[i]
+                    if not on:
+                        for k in range(3):
+                            j = nbr[i, k]
+                            if j >= 0 and cact[j]:
+                                on = True
+                                break
+                    new[i] = on
+        for c_ in nb.prange(NCHUNK):
+            for b_ in range(c_, nb_, NCHUNK):
+                for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                    cact[i] = new[i]
+    n_e = e2t.shape[0]
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (n_e + BLOCK - 1) // BLOCK, NCHUNK):
+            for e in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
+                r = e2t[e, 1]
+                live[e] = cact[e2t[e, 0]] and (r < 0 or cact[r])
+    counts = np.zeros(NCHUNK, np.int64)
+    for c_ in nb.prange(NCHUNK):
+        k = 0
+        for b_ in range(c_, nb_, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                k += cact[i]
+        counts[c_] = k
+    return counts.sum()
 
 
 def cell_edges(mesh) -> np.ndarray:

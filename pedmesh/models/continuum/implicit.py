@@ -358,7 +358,7 @@ class ImplicitPressure:
         if n:
             # the system scaled symmetrically to a unit diagonal (Jacobi), solved by CG
             y, it = conjugate_gradients(indptr, indices, data, b, x0, CG_RTOL, CG_MAXITER)
-            rho[cells] = y * scale
+            _scatter_scaled(rho, cells, y, scale)
             self.stats["solves"] += 1
             self.stats["iterations"] += it
             self.stats["unknowns"] += n
@@ -520,6 +520,16 @@ def _cg_direction(r, beta, p):
     for c in nb.prange(nc):
         for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
             p[i] = r[i] + beta * p[i]
+
+
+@nb.njit(cache=True, parallel=True)
+def _scatter_scaled(rho, cells, y, scale):
+    """``rho[cells] = y * scale``, on the threads."""
+    n = cells.shape[0]
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (n + BLOCK - 1) // BLOCK, NCHUNK):
+            for r in range(b_ * BLOCK, min(n, (b_ + 1) * BLOCK)):
+                rho[cells[r]] = y[r] * scale[r]
 
 
 @nb.njit(cache=True)
