@@ -10,7 +10,8 @@ law is read at the local density and misses that; with ``exit_kernel`` = R it is
 ``rho (1 - w(x))``, ``w`` the mass of the normalised kernel beyond the exits,
 
 .. math::  w(x) = \\sum_{\\text{exit edges}} \\tfrac12 \\operatorname{erfc}(s / R)
-           \\cdot \\tfrac12 \\left[\\operatorname{erf}((L - t) / R) + \\operatorname{erf}(t / R)\\right]
+           \\cdot \\tfrac12 \\left[\\operatorname{erf}((L - t) / R)
+           + \\operatorname{erf}(t / R)\\right]
 
 for an edge of length ``L``, ``s`` the distance of ``x`` from the edge's line on the
 walkable side and ``t`` its coordinate along the edge (the half-strip beyond the edge:
