@@ -405,6 +405,11 @@ CONTINUUM: tuple[Parameter, ...] = declare(
     Parameter("calibration", None, "", "eos: the equation-of-state file written by "
               "`pedmesh calibrate` (None: the one shipped for Table 1)", kind="text",
               optional=True),
+    _non_negative("exit_kernel", 0.0, "m", "eos: near an exit the speed law is read at the "
+                  "density the social force model's people see there, the crowd's less the "
+                  "mass of their density kernel of this width beyond the exit (0: off, the "
+                  "local density; the validated preset: the kernel width R)",
+                  range=(0.0, 5.0)),
     _positive("empty_below", 0.5, "ped", "the room counts as empty when fewer than this "
               "many remain (the continuum never reaches exactly zero); t_evac_100 is then",
               range=(1e-6, 100.0)),

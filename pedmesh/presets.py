@@ -25,7 +25,8 @@ model everything).
   otherwise. The continuum models take the fitted SFM's own fundamental diagram, measured by
   ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``), as
   their table (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with
-  these parameters (``pedmesh/data/eos_validated.json``).
+  these parameters (``pedmesh/data/eos_validated.json``) and reads its law near exits at
+  the density the social force model's kernel sees there (``exit_kernel`` = R).
 
 ``pedmesh presets`` lists them with values, units and sources.
 """
@@ -149,6 +150,12 @@ def _validated() -> "Preset | None":
         values["rho_shift"] = Value(round(1.0 / (math.pi * R * R), 6), _unit("rho_shift"),
                                     "1/(pi R^2): the continuum models' law at rho - 1/(pi R^2),"
                                     " the validated SFM's fundamental diagram")
+    # eos: near an exit its law is read at the density the social force model's people see
+    # there (their kernel, width R, finds nobody beyond the exit)
+    continuum["exit_kernel"] = Value(
+        float(fit["parameters"].get("R", _PAPER_VALUES["R"].value)), _unit("exit_kernel"),
+        "the validated SFM's kernel width R: eos reads its law near exits at the density "
+        "that kernel sees (docs/validation/dense_crowds.md)")
     eos = DATA / "eos_validated.json"
     if eos.is_file():
         values["calibration"] = Value(str(eos), _unit("calibration"),

@@ -78,3 +78,25 @@ def test_eos_matches_the_social_force_model(load_shipped, name):
     assert s["mass_error_max"] <= 1e-10
     assert abs(d50) <= 0.03 and abs(d90) <= 0.03
     assert d <= 0.015
+
+
+@pytest.mark.parametrize("name", ["example2.json", "corridor_bottleneck.json"])
+def test_eos_matches_the_social_force_model_under_validated(geometries_dir, tmp_path, name):
+    """Issue 31: under the validated preset (eos with its exit kernel) eos's T50 and T90 are
+    within 3 % of the social force model's (measured: Example 2 -0.3 / +1.2 %, the corridor
+    bottleneck +0.3 / +0.9 %; docs/validation/dense_crowds.md, "eos at the door")."""
+    import json
+
+    from pedmesh.cli import main
+
+    t = {}
+    for model in ("sfm", "eos"):
+        out = tmp_path / model
+        assert main(["run", str(geometries_dir / name), "--model", model, "--preset",
+                     "validated", "--out", str(out), "-q"]) == 0
+        s = json.loads((out / "summary.json").read_text())
+        t[model] = (s["t_evac_50"], s["t_evac_90"])
+    d50, d90 = (e / s - 1.0 for e, s in zip(t["eos"], t["sfm"]))
+    print(f"\neos {name} (validated): T50 {t['eos'][0]:.1f} (sfm {t['sfm'][0]:.1f}, "
+          f"{100 * d50:+.1f} %), T90 {t['eos'][1]:.1f} (sfm {t['sfm'][1]:.1f}, {100 * d90:+.1f} %)")
+    assert abs(d50) <= 0.03 and abs(d90) <= 0.03

@@ -14,11 +14,18 @@ Godunov flux into empty space (``exit=godunov``), which is consistent with any b
 The calibration holds for the SFM parameters it was measured with; when the run's SFM
 parameters (given with ``--param A=...`` etc.) differ, the model says so in
 :attr:`EquationOfStateModel.warnings` (printed by ``pedmesh run`` and kept in summary.json).
+
+``exit_kernel`` [m] (0: off; the ``validated`` preset sets the social force model's kernel
+width R): near an exit the speed law is read at the density the social force model's people
+see there, lowered by the kernel's mass beyond the exit
+(:mod:`pedmesh.models.continuum.exit_kernel`).
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from ...errors import ParameterError
 from .barotropic import BarotropicModel, PressureLaw
@@ -46,7 +53,8 @@ class EquationOfStateModel(BarotropicModel):
                  rho_cut: float = D['rho_cut'], u_max: float | None = None,
                  speed_law: str = D['speed_law'], rho_jam: float = D['rho_jam'],
                  gamma_w: float = D['gamma_w'], rho_shift: float = D['rho_shift'],
-                 speed_table: str = D['speed_table'], **sfm) -> None:
+                 speed_table: str = D['speed_table'], exit_kernel: float = D['exit_kernel'],
+                 **sfm) -> None:
         unknown = set(sfm) - set(SFM_KEYS)
         if unknown:
             raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
@@ -74,14 +82,54 @@ class EquationOfStateModel(BarotropicModel):
                 f"parameters: {', '.join(diff)}; recalibrate with 'pedmesh calibrate --param "
                 "NAME=VALUE ... -o eos.json' and run with --param calibration=eos.json")
         self.rho_range = (float(fit["rho"][0]), float(fit["rho"][-1]))
+        #: [m] the width of the kernel beyond exits (0: off; see the module docstring)
+        self.exit_kernel = float(exit_kernel)
+        #: (m, 3) the factor of the density the speed law is read at, per interior point
+        #: (None: 1 everywhere; set by :meth:`bind`)
+        self.seen = None
+
+    def bind(self, mesh) -> None:
+        super().bind(mesh)
+        self.seen = None
+        if self.exit_kernel > 0:
+            from .exit_kernel import exit_kernel_mass, interior_points
+
+            pts = interior_points(mesh)
+            cells = np.repeat(np.arange(len(pts)), 3)
+            w = exit_kernel_mass(mesh, pts.reshape(-1, 2), cells, self.exit_kernel)
+            if np.any(w > 0):
+                self.seen = np.ascontiguousarray((1.0 - w).reshape(-1, 3))
+
+    def source(self, q, ex, ey):
+        """The relaxation at the points ``q``; with :attr:`seen`, the points must be the
+        solver's interior points of every cell (3 per cell, in order), as it passes them."""
+        if self.seen is None:
+            return super().source(q, ex, ey)
+        from .exit_kernel import relaxation_seen
+
+        if len(q) != self.seen.size:
+            raise ValueError("eos with exit_kernel: sources at the cells' interior points only")
+        S = np.empty_like(q)
+        relaxation_seen(q, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max,
+                        self.seen.ravel(), S)
+        return S
+
+    def source_mean(self, Vi, ex, ey, dQ, cact):
+        if self.seen is None:
+            return super().source_mean(Vi, ex, ey, dQ, cact)
+        from .exit_kernel import relaxation_mean_seen
+
+        relaxation_mean_seen(Vi, ex, ey, self.U_f, self._law, self.tau, self.rho_vac,
+                             self.u_max, self.seen, dQ, cact)
 
     def parameters(self) -> dict:
-        return {"calibration": self.calibration, **super().parameters(),
+        return {"calibration": self.calibration, "exit_kernel": self.exit_kernel,
+                **super().parameters(),
                 **{k: v for k, v in self.sfm.items() if k != "tau"}}
 
 
 register_continuum_model("eos", EquationOfStateModel,
-                         BASE_PARAMETERS + SFM_PARAMETERS + ("calibration",),
+                         BASE_PARAMETERS + SFM_PARAMETERS + ("calibration", "exit_kernel"),
                          aliases=("calibrated",), surface=True,
                          description="Payne-Whitham-type with the social force model's measured "
                                      "equation of state")

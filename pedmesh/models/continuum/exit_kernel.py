@@ -1,0 +1,126 @@
+"""The density the social force model's people see near an exit, for the continuum's speed
+law (``eos`` under the ``validated`` preset: the parameter ``exit_kernel``).
+
+A pedestrian of the social force model reads its desired speed at its kernel density, the
+Gaussian sum ``sum_j exp(-|x_i - x_j|^2 / R^2) / (pi R^2)`` over the people around it
+(``R`` = 0.7 m). Beyond an exit there is nobody: within about a metre of a door the kernel
+density is lower than the crowd's density by the kernel's mass beyond the exit, and the
+people in the door want to walk faster than the crowd behind them. The continuum's speed
+law is read at the local density and misses that; with ``exit_kernel`` = R it is read at
+``rho (1 - w(x))``, ``w`` the mass of the normalised kernel beyond the exits,
+
+.. math::  w(x) = \\sum_{\\text{exit edges}} \\tfrac12 \\operatorname{erfc}(s / R)
+           \\cdot \\tfrac12 \\left[\\operatorname{erf}((L - t) / R)
+           + \\operatorname{erf}(t / R)\\right]
+
+for an edge of length ``L``, ``s`` the distance of ``x`` from the edge's line on the
+walkable side and ``t`` its coordinate along the edge (the half-strip beyond the edge:
+exact for a straight exit). Walls are left alone: at a wall the social force model's
+people also see nobody beyond it, but they are pushed off it by the wall force, which the
+continuum's walls (mirror states) do not have either.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+from scipy.special import erf, erfc
+
+from .fv_kernels import BLOCK, FAST, NCHUNK, PAR
+from .barotropic import _prim
+from ...speed import shape
+
+__all__ = ["exit_kernel_mass", "interior_points", "relaxation_mean_seen", "relaxation_seen"]
+
+
+def interior_points(mesh) -> np.ndarray:
+    """(m, 3, 2) the interior quadrature points of each cell, as the solver places them."""
+    from .reconstruction import INTERIOR_BARY
+
+    corners = mesh.points[:, :2][mesh.triangles]
+    return np.einsum("pb,mbd->mpd", INTERIOR_BARY, corners)
+
+
+def exit_kernel_mass(mesh, points: np.ndarray, cells: np.ndarray, R: float) -> np.ndarray:
+    """The mass ``w`` (k,) of the normalised Gaussian kernel of width ``R`` [m] beyond the
+    exit edges of ``mesh`` at ``points`` (k, 2) [m] in the cells ``cells`` (k,) (see the
+    module docstring). On a building's surface an exit edge counts only for the cells of its
+    own piece (the pieces lie side by side in one plane)."""
+    from ...mesh.triangle_mesh import BoundaryKind
+
+    pts = np.asarray(points, float).reshape(-1, 2)
+    w = np.zeros(len(pts))
+    if not R > 0:
+        return w
+    exits = np.flatnonzero(mesh.edge_kind == BoundaryKind.EXIT)
+    if not len(exits):
+        return w
+    P = mesh.points[:, :2]
+    ed = mesh.edges[exits]
+    own = mesh.edge_triangles[exits, 0]
+    piece = getattr(mesh, "piece", None)
+    cell_piece = None if piece is None else np.asarray(piece)[np.asarray(cells)]
+    reach = 4.0 * R  # erfc(4) = 1.5e-8
+    for k in range(len(exits)):
+        a, b = P[ed[k, 0]], P[ed[k, 1]]
+        L = math.hypot(*(b - a))
+        if L <= 0:
+            continue
+        t_ = (b - a) / L
+        nrm = np.array([t_[1], -t_[0]])
+        if np.dot(P[mesh.triangles[own[k]]].mean(0) - a, nrm) < 0:
+            nrm = -nrm  # towards the walkable side
+        d = pts - a
+        s = d @ nrm
+        t = d @ t_
+        near = (s > -1e-9) & (s < reach) & (t > -reach) & (t < L + reach)
+        if cell_piece is not None:
+            near &= cell_piece == piece[own[k]]
+        if not near.any():
+            continue
+        sn, tn = np.maximum(s[near], 0.0), t[near]
+        w[near] += 0.25 * erfc(sn / R) * (erf((L - tn) / R) + erf(tn / R))
+    return np.clip(w, 0.0, 1.0)
+
+
+@nb.njit(**FAST, inline="always")
+def _relax_point_seen(q, ex, ey, U_f, law, rho_cut, umax, f):
+    """tau times the relaxation of the state (3,) ``q`` with the speed law read at
+    ``f`` times its density (the density the social force model's people see)."""
+    r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
+    ue = U_f * shape(law, r * f)
+    return r * (ue * ex - ux), r * (ue * ey - uy)
+
+
+@nb.njit(**PAR)
+def relaxation_mean_seen(Vi, ex, ey, U_f, law, tau, rho_cut, umax, seen, dQ, cact):
+    """:func:`pedmesh.models.continuum.barotropic.relaxation_mean` with the speed law read
+    at ``seen`` (m, 3) times the density at each interior point."""
+    c = 1.0 / (3.0 * tau)
+    n_i = dQ.shape[0]
+    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
+        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
+                if not cact[i]:
+                    continue
+                s1 = s2 = 0.0
+                for p in range(3):
+                    a1, a2 = _relax_point_seen(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f,
+                                               law, rho_cut, umax, seen[i, p])
+                    s1 += a1
+                    s2 += a2
+                dQ[i, 1] += c * s1
+                dQ[i, 2] += c * s2
+
+
+@nb.njit(**PAR)
+def relaxation_seen(q, ex, ey, U_f, law, tau, rho_cut, umax, seen, S):
+    """:func:`pedmesh.models.continuum.barotropic.relaxation` at the k points with the speed
+    law read at ``seen`` (k,) times their densities."""
+    for k in nb.prange(q.shape[0]):
+        s1, s2 = _relax_point_seen(q[k], ex[k], ey[k], U_f, law, rho_cut, umax, seen[k])
+        S[k, 0] = 0.0
+        S[k, 1] = s1 / tau
+        S[k, 2] = s2 / tau
