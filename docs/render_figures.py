@@ -12,6 +12,9 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
 * ``docs/data/eikonal.json``: ``python benchmarks/eikonal.py --json FILE``;
 * ``docs/data/threads_sfm.json``: ``python benchmarks/threads.py --model sfm --json FILE``
   (the social force model's kernels and whole Example 2 processes on 1, 2, ... threads).
+* ``docs/data/threads_eos.json``: ``python benchmarks/threads.py --model eos --profile 80
+  --json FILE`` (eos's kernels and whole steps on the venue on 1, 2, ... threads, and the
+  serial share of a one-thread step).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -144,10 +147,43 @@ def threads_sfm(path: Path = DATA / "threads_sfm.json") -> str:
     return "\n".join(lines)
 
 
+def threads_eos(path: Path = DATA / "threads_eos.json") -> str:
+    record = json.loads(path.read_text())
+    res = record["results"]
+    counts = [str(t) for t in res["threads"]]
+    st = res["state"]
+    head = ["kernel", *(f"{t} thr. median / best [ms]" for t in counts),
+            *(f"x {t} thr. median / best" for t in counts[1:])]
+    rows = [[r["kernel"], *(f"{1e3 * r['median_s'][t]:.2f} / {1e3 * r['best_s'][t]:.2f}"
+                            for t in counts),
+             *(f"{r['ratio_median'][t]:.2f} / {r['ratio_best'][t]:.2f}" for t in counts[1:])]
+            for r in res["kernels"]]
+    lines = [f"`{st['model']}` on `{st['room']}` ({st['cells']:,} cells, {st['inside']:,.0f} "
+             f"people inside at t = {st['t']:.0f} s), numba's `{res['threading_layer']}` "
+             f"threading layer; each kernel {res['repeats']} times per thread count, the "
+             "counts interleaved; *x N thr.*: the time on N threads over that on one.", ""]
+    lines += _table(head, rows, "l")
+    prof = res.get("profile")
+    if prof:
+        lines += ["", f"A profile of {prof['steps']} whole steps on one thread (cProfile, "
+                  f"{1e3 * prof['wall_s'] / prof['steps']:.1f} ms a step): the functions' own "
+                  "time, *parallel* where it is a kernel whose loops the threads share, "
+                  f"*serial* elsewhere. The serial share is **{100 * prof['serial_share']:.1f} "
+                  "%** of the profiled time, which bounds the speed-up of N threads to "
+                  f"1 / ({prof['serial_share']:.3f} + {1 - prof['serial_share']:.3f} / N) "
+                  "(Amdahl).", ""]
+        top = [[f"`{f['function'].split(':')[-1]}`", "parallel" if f["parallel"] else "serial",
+                f"{100 * f['seconds'] / prof['profiled_s']:.1f}"] for f in prof["functions"][:16]]
+        lines += _table(["function", "kind", "share [%]"], top, "l")
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
-            "figures_threads_sfm.md": threads_sfm}
+            "figures_threads_sfm.md": threads_sfm,
+            "figures_threads_eos.md": threads_eos}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

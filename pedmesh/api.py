@@ -70,15 +70,14 @@ def build(room, model: str = "sfm", *, preset: str | None = None,
           mesh_options: Mapping[str, Any] | None = None, max_people: int | None = None,
           **options: Any):
     """Model ``model`` on ``room`` (a :class:`~pedmesh.geometry.Room`, a
-    :class:`~pedmesh.geometry.Building` or a room file),
-    built with the parameters of ``preset`` (default: the room file's, else
-    ``validated``) and ``params`` on top, ready to :meth:`step`. ``mesh``: a
-    :class:`~pedmesh.mesh.TriMesh` of the room, or a building's
-    :class:`~pedmesh.mesh.surface.SurfaceMesh` (default: triangulated with ``mesh_options``,
-    see :func:`pedmesh.mesh.triangulate` and :func:`pedmesh.mesh.triangulate_building`). ``max_people``: the largest
-    crowd taken (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`). ``options``:
-    the model options its registry entry lists (e.g. ``seed`` for the social force
-    model)."""
+    :class:`~pedmesh.geometry.Building` or a room file), built with the parameters of
+    ``preset`` (default: the room file's, else ``validated``) and ``params`` on top, ready
+    to :meth:`step`. ``mesh``: a :class:`~pedmesh.mesh.TriMesh` of the room, or a
+    building's :class:`~pedmesh.mesh.surface.SurfaceMesh` (default: triangulated with
+    ``mesh_options``, see :func:`pedmesh.mesh.triangulate` and
+    :func:`pedmesh.mesh.triangulate_building`). ``max_people``: the largest crowd taken
+    (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`). ``options``: the model
+    options its registry entry lists (e.g. ``seed`` for the social force model)."""
     from .run.driver import build_model
 
     room, mesh, _ = _room_and_mesh(room, mesh, mesh_options, max_people)

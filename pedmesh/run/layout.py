@@ -46,8 +46,9 @@ def find_room_file(geometry: str | None, base: Path,
 class BuildingLayout:
     """A building's atlas for drawing: ``points`` (n, 2) [m] and ``triangles`` (m, 3) (cell
     t is the frames' cell t), ``walls`` (k, 2, 2) [m] the walls and obstacle sides,
-    ``exits`` (e, 2, 2) [m] the building's exits, ``stair_edges`` (j, 2, 2) [m] the stair edges (each on both of its pieces) and
-    ``labels`` the name of each level with a point [m] inside it."""
+    ``exits`` (e, 2, 2) [m] the building's exits, ``stair_edges`` (j, 2, 2) [m] the stair
+    edges (each on both of its pieces) and ``labels`` the name of each level with a point
+    [m] inside it."""
 
     atlas: object
     points: np.ndarray
