@@ -127,12 +127,13 @@ def _unit_rows(v, out):
             out[i, 1] = 0.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def _descent(bgrad, triangles, phi, grad, unit):
     """Per triangle: the P1 gradient ``grad`` of the vertex values ``phi`` (0 where a vertex
     value is not finite) and the unit descent direction ``unit`` = -grad/|grad| (0 where the
-    gradient is 0). ``bgrad`` (m, 3, 2): gradients of the barycentric coordinates."""
-    for t in range(triangles.shape[0]):
+    gradient is 0). ``bgrad`` (m, 3, 2): gradients of the barycentric coordinates. The
+    triangles on the threads (each writes its own rows)."""
+    for t in nb.prange(triangles.shape[0]):
         p0 = phi[triangles[t, 0]]
         p1 = phi[triangles[t, 1]]
         p2 = phi[triangles[t, 2]]
@@ -194,7 +195,7 @@ def _jamb_overrides(mesh: TriMesh) -> np.ndarray:
 PACK_WIDTH = 21
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, parallel=True)
 def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
     """Everything the interpolation needs about triangle ``t`` in one row ``out[t]``:
 
@@ -207,9 +208,9 @@ def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
       factor there, :func:`scale_packed`).
 
     One contiguous row per triangle instead of six scattered look-ups per point halves the
-    cost of steering thousands of pedestrians.
+    cost of steering thousands of pedestrians. The triangles on the threads.
     """
-    for t in range(triangles.shape[0]):
+    for t in nb.prange(triangles.shape[0]):
         a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
         ax, ay = points[a, 0], points[a, 1]
         ux, uy = points[b, 0] - ax, points[b, 1] - ay
@@ -289,6 +290,17 @@ def _interpolate(P, tri_idx, xy, out):
         if nrm > 1e-12:
             out[k, 0] = ex / nrm * P[t, 20]
             out[k, 1] = ey / nrm * P[t, 20]
+
+
+@nb.njit(cache=True, parallel=True)
+def _interpolate_threads(P, tri_idx, xy, out):
+    """:func:`_interpolate` with the points in chunks of 1,024 on the threads (the same
+    numbers: each point is its own)."""
+    n = tri_idx.shape[0]
+    for c in nb.prange((n + 1023) // 1024):
+        lo = c * 1024
+        hi = min(n, lo + 1024)
+        _interpolate(P, tri_idx[lo:hi], xy[lo:hi], out[lo:hi])
 
 
 def scale_packed(packed: np.ndarray, factors: np.ndarray) -> np.ndarray:
@@ -380,5 +392,5 @@ class DirectionField:
         pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 2))
         tri = self.mesh.locate(pts) if triangles is None else np.asarray(triangles, np.int64)
         out = np.empty_like(pts)
-        _interpolate(self.packed, np.ascontiguousarray(tri), pts, out)
+        _interpolate_threads(self.packed, np.ascontiguousarray(tri), pts, out)
         return out
