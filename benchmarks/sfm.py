@@ -12,7 +12,7 @@
    crowding) under the validated preset, A/B against the same preset without them,
    interleaved (goal: at most 1.2 x).
 
-    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling] [--dense-ab]
+    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling] [--dense-ab] [--json FILE]
 
 Goals (issue 4): <= 1.5 ms per step with 2400 agents including density and rerouting;
 Example 2 end to end <= 0.25 x JuPedSim's wall time; cost per agent-step flat within 1.3x
@@ -225,7 +225,7 @@ def dense_terms_ab(steps: int = 300, repeats: int = 5, preset: str = "validated"
 
 
 def main(skip_jupedsim: bool = False, skip_scaling: bool = False,
-         dense_ab: bool = False) -> None:
+         dense_ab: bool = False, json_path: str | None = None) -> None:
     if dense_ab:
         times, terms = dense_terms_ab()
         on, off = np.array(times["on"]), np.array(times["off"])
@@ -251,6 +251,9 @@ def main(skip_jupedsim: bool = False, skip_scaling: bool = False,
         print(f"  {k:<62s} {1e3 * v:7.3f} ms")
     ok = per["step (all included)"] <= 1.5e-3
     print(f"  goal <= 1.5 ms per step: {'met' if ok else 'NOT met'}")
+    record = {"example2": {k: e2[k] for k in ("wall", "setup", "steps", "t50", "t90", "t100")},
+              "mesh": {"vertices": mesh.n_points, "triangles": mesh.n_triangles},
+              "step_split_s": per, "pairs": int(npairs), "jupedsim": None}
     if not skip_jupedsim:
         try:
             import jupedsim  # noqa: F401
@@ -269,6 +272,10 @@ def main(skip_jupedsim: bool = False, skip_scaling: bool = False,
             print(f"  one step with 2400 present, pedmesh / JuPedSim: {step_ratio:.3f} (a "
                   "machine-independent view of the 1.5 ms goal, set where JuPedSim takes "
                   f"about 7.5 ms: {1.5 / 7.5:.2f})")
+            record["jupedsim"] = {"version": jupedsim.__version__, "wall": j["wall"],
+                                  "steps": j["steps"], "t_end": j["t_end"],
+                                  "per_step": j["per_step"], "agents": j["n_first"],
+                                  "ratio_wall": ratio, "ratio_step": step_ratio}
     if not skip_scaling:
         print("\nScaling in a hall at about 1 ped/m^2 (routing amortised, re-solved every 1 s; "
               "the sizes stepped in turn, 5 rounds of 20 steps):")
@@ -281,6 +288,14 @@ def main(skip_jupedsim: bool = False, skip_scaling: bool = False,
         spread = max(costs) / min(costs)
         print(f"max/min cost per agent-step: {spread:.2f} (goal <= 1.3: "
               f"{'met' if spread <= 1.3 else 'NOT met'})")
+    if json_path:
+        import sys
+
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from _common import write_json
+
+        write_json(json_path, record)
+        print(f"figures in {json_path}")
 
 
 if __name__ == "__main__":
@@ -289,5 +304,7 @@ if __name__ == "__main__":
     ap.add_argument("--skip-scaling", action="store_true")
     ap.add_argument("--dense-ab", action="store_true",
                     help="only the cost of the dense-crowd terms (A/B on Example 2)")
+    ap.add_argument("--json", default=None,
+                    help="write Example 2's figures and JuPedSim's to this file")
     a = ap.parse_args()
-    main(a.skip_jupedsim, a.skip_scaling, a.dense_ab)
+    main(a.skip_jupedsim, a.skip_scaling, a.dense_ab, a.json)

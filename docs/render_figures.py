@@ -12,6 +12,8 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
 * ``docs/data/eikonal.json``: ``python benchmarks/eikonal.py --json FILE``;
 * ``docs/data/threads_sfm.json``: ``python benchmarks/threads.py --model sfm --json FILE``
   (the social force model's kernels and whole Example 2 processes on 1, 2, ... threads).
+* ``docs/data/sfm_jupedsim.json``: ``python benchmarks/sfm.py --skip-scaling --json FILE``
+  (Example 2 under the social force model against JuPedSim's, in the same run).
 * ``docs/data/threads_eos.json``: ``python benchmarks/threads.py --model eos --profile 80
   --json FILE`` (eos's kernels and whole steps on the venue on 1, 2, ... threads, and the
   serial share of a one-thread step).
@@ -179,11 +181,33 @@ def threads_eos(path: Path = DATA / "threads_eos.json") -> str:
     return "\n".join(lines)
 
 
+def sfm_reference(path: Path = DATA / "sfm_jupedsim.json") -> str:
+    record = json.loads(path.read_text())
+    res = record["results"]
+    e2, j = res["example2"], res["jupedsim"]
+    step = res["step_split_s"]["step (all included)"]
+    lines = [f"Example 2 (2,400 people, {res['mesh']['triangles']:,} triangles), the paper's "
+             "parameters:", ""]
+    rows = [["pedmesh, social force model (SSP-RK3, kernel density, routes every 1 s)",
+             f"{e2['wall']:.1f}", f"{e2['steps']:,}", f"{1e3 * step:.3f}"]]
+    if j:
+        rows.append([f"JuPedSim {j['version']} SocialForceModel (forward Euler, dt 0.01 s, no "
+                     "rerouting)", f"{j['wall']:.1f}", f"{j['steps']:,}",
+                     f"{1e3 * j['per_step']:.3f}"])
+    lines += _table(["", "wall [s]", "steps", "one step with 2,400 inside [ms]"], rows, "l")
+    if j:
+        lines += ["", f"pedmesh / JuPedSim: **{j['ratio_wall']:.3f}** of the wall time, "
+                  f"**{j['ratio_step']:.3f}** of a step with everyone inside, in the same run."]
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
             "figures_threads_sfm.md": threads_sfm,
-            "figures_threads_eos.md": threads_eos}
+            "figures_threads_eos.md": threads_eos,
+            "figures_sfm_jupedsim.md": sfm_reference}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:
