@@ -19,6 +19,7 @@ from ...analysis.evacuation import evacuation_times_from_curve
 from ...errors import ParameterError, SimulationError
 from ..registry import CONTINUUM, ModelEntry, get_model, register_model
 from .base import MacroModel
+from .fv_kernels import copy_cells
 from .solver import FVController, FVOptions, FVSolver, FVState
 
 __all__ = ["MacroRunOptions", "MacroRun", "ContinuumEntry", "register_continuum_model",
@@ -230,7 +231,13 @@ class MacroRun:
         sliver of a step follows (see :meth:`FVController.advance`; steps are only ever
         shortened). ``math.inf`` (the default): the plain CFL step, bit for bit as before.
         A ``t_limit`` that is NaN or not after :attr:`t` is a ValueError."""
-        self._prev = (self.state.t, self.state.Q.copy())
+        Q = self.state.Q
+        if Q.ndim == 2 and Q.flags.c_contiguous:
+            prev = np.empty_like(Q)
+            copy_cells(Q, prev)  # (on the threads)
+        else:
+            prev = Q.copy()
+        self._prev = (self.state.t, prev)
         t0 = self.state.t
         if self._delayed and self.solver.mass(self.state.Q) <= 1e-12 * self._n0:
             # nobody walks yet (all within their premovement): only the clock moves, by at

@@ -462,6 +462,36 @@ def stage_update(Q, dt, L, V):
 
 
 @nb.njit(**EXACT_PAR)
+def copy_cells(Q, out):
+    """``out[:] = Q``, the cells in parallel."""
+    m, nv = Q.shape
+    for c_ in nb.prange(NCHUNK):
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                for v in range(nv):
+                    out[i, v] = Q[i, v]
+
+
+@nb.njit(**EXACT_PAR)
+def fingerprint(Q):
+    """The sum of every entry of ``Q`` (chunks in parallel, added in order: the same on any
+    number of threads): a cheap check that a state has not changed."""
+    m, nv = Q.shape
+    part = np.zeros(NCHUNK)
+    for c_ in nb.prange(NCHUNK):
+        acc = 0.0
+        for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
+            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                for v in range(nv):
+                    acc += Q[i, v]
+        part[c_] = acc
+    out = 0.0
+    for c_ in range(NCHUNK):
+        out += part[c_]
+    return out
+
+
+@nb.njit(**EXACT_PAR)
 def heun_combine(Q, S, out):
     """``out = 0.5 Q + 0.5 S`` (as numpy rounds it), the cells in parallel; returns the
     smallest and the largest density of ``out`` and whether every entry is finite (each

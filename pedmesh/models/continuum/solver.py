@@ -522,7 +522,7 @@ class FVSolver:
             FL, alpha = self._FL, self._alpha
             key, self._lo_key = self._lo_key, None
             if not (key is not None and key[0] is Q and key[1] == t
-                    and key[2] == float(Q.sum())):
+                    and key[2] == K.fingerprint(Q)):
                 self._low_order(Q, t, FL, alpha)
             # (else max_dt's, of these very cell averages: its wave speeds floored, which
             # only makes the check below stricter)
@@ -562,7 +562,7 @@ class FVSolver:
         self._buffers(Q.shape[1])
         alpha = self._alpha
         self._low_order(Q, t, self._FL, alpha)
-        self._lo_key = (Q, t, float(Q.sum()))  # the first stage of a step from Q reuses them
+        self._lo_key = (Q, t, K.fingerprint(Q))  # the first stage of a step from Q reuses them
         floor = float(getattr(self.model, "speed_floor", 0.0))
         if floor > 0:
             np.maximum(alpha, floor, out=alpha)
