@@ -441,28 +441,39 @@ def _integrate(f, g, length, F, e):
 
 
 @nb.njit(**FAST, inline="always")
-def _relax_point(q, ex, ey, U_f, law, rho_cut, umax):
-    """tau times the relaxation rho (U_e(rho) e - u)/tau of the state (3,) ``q`` (speed
-    law array ``law``, see :mod:`pedmesh.speed`)."""
+def _relax_point(q, ex, ey, U_f, law, rho_cut, umax, f):
+    """tau times the relaxation rho (U_e(f rho) e - u)/tau of the state (3,) ``q`` (speed
+    law array ``law``, see :mod:`pedmesh.speed`), the law read at ``f`` times the density
+    (1: the density itself, exactly; eos's exit kernel: the density the social force
+    model's people see, :mod:`pedmesh.models.continuum.exit_kernel`)."""
     r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
-    ue = U_f * shape(law, r)
+    ue = U_f * shape(law, r * f)
     return r * (ue * ex - ux), r * (ue * ey - uy)
 
 
+#: no density factors (the relaxation kernels' ``seen``: the law at the density itself)
+NO_SEEN = np.ones(0)
+
+
 @nb.njit(**PAR)
-def relaxation(q, ex, ey, U_f, law, tau, rho_cut, umax, S):
-    """rho (U_e(rho) e - u)/tau at k points."""
+def relaxation(q, ex, ey, U_f, law, tau, rho_cut, umax, seen, S):
+    """rho (U_e(rho) e - u)/tau at k points (the law read at ``seen`` (k,) times their
+    densities; ``seen`` empty: at the densities)."""
+    some = seen.shape[0] > 0
     for k in nb.prange(q.shape[0]):
-        s1, s2 = _relax_point(q[k], ex[k], ey[k], U_f, law, rho_cut, umax)
+        s1, s2 = _relax_point(q[k], ex[k], ey[k], U_f, law, rho_cut, umax,
+                              seen[k] if some else 1.0)
         S[k, 0] = 0.0
         S[k, 1] = s1 / tau
         S[k, 2] = s2 / tau
 
 
 @nb.njit(**PAR)
-def relaxation_mean(Vi, ex, ey, U_f, law, tau, rho_cut, umax, dQ, cact):
+def relaxation_mean(Vi, ex, ey, U_f, law, tau, rho_cut, umax, seen, dQ, cact):
     """dQ[i] += the mean of the relaxation at the 3 interior points of cell i (states
-    ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,)), for the active cells ``cact``."""
+    ``Vi`` (m, 3, 3), directions ``ex``, ``ey`` (3 m,)), for the active cells ``cact``; the
+    law read at ``seen`` (3 m,) times the points' densities (empty: at the densities)."""
+    some = seen.shape[0] > 0
     c = 1.0 / (3.0 * tau)
     n_i = dQ.shape[0]
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
@@ -473,7 +484,7 @@ def relaxation_mean(Vi, ex, ey, U_f, law, tau, rho_cut, umax, dQ, cact):
                 s1 = s2 = 0.0
                 for p in range(3):
                     a1, a2 = _relax_point(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f, law,
-                                          rho_cut, umax)
+                                          rho_cut, umax, seen[3 * i + p] if some else 1.0)
                     s1 += a1
                     s2 += a2
                 dQ[i, 1] += c * s1
@@ -520,6 +531,9 @@ class BarotropicModel(MacroModel):
     default_u_max = 2.5
     direction_dependent_flux = False
     exit_conditions = ("vacuum", "transmissive")
+    #: (m, 3) the factor of the density the speed law is read at, at each cell's interior
+    #: points (None: 1 everywhere; eos's exit kernel sets it)
+    seen: np.ndarray | None = None
 
     def __init__(self, name: str, law: PressureLaw, *, U_f: float = D['U_f'],
                  beta: float = D['beta'], tau: float = D['tau'],
@@ -610,7 +624,7 @@ class BarotropicModel(MacroModel):
         """Adds to ``dQ`` (m, 3) the mean of :meth:`source` at each active (``cact``) cell's
         3 interior points (states ``Vi`` (m, 3, 3), directions (3 m,))."""
         relaxation_mean(Vi, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max,
-                        dQ, cact)
+                        self._seen(len(Vi) * 3), dQ, cact)
 
     def cell_flux(self, Q, e2t, edges, nx, ny, ex, ey, lengths, F, alpha, live):
         """First-order fluxes of interior ``edges`` between their cells' averages ``Q``,
@@ -662,8 +676,19 @@ class BarotropicModel(MacroModel):
 
     def source(self, q, ex, ey):
         S = np.empty_like(q)
-        relaxation(q, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max, S)
+        relaxation(q, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max,
+                   self._seen(len(q)), S)
         return S
+
+    def _seen(self, k: int) -> np.ndarray:
+        """:attr:`seen` for ``k`` source points (they must be every cell's interior points),
+        else :data:`NO_SEEN`."""
+        if self.seen is None:
+            return NO_SEEN
+        if k != self.seen.size:
+            raise ValueError(f"{self.name} with density factors: sources at the cells' "
+                             "interior points only")
+        return self.seen.ravel()
 
     def velocity(self, q):
         out = np.empty((len(q), 2))

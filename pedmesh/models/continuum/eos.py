@@ -85,7 +85,7 @@ class EquationOfStateModel(BarotropicModel):
         #: [m] the width of the kernel beyond exits (0: off; see the module docstring)
         self.exit_kernel = float(exit_kernel)
         #: (m, 3) the factor of the density the speed law is read at, per interior point
-        #: (None: 1 everywhere; set by :meth:`bind`)
+        #: (None: 1 everywhere; set by :meth:`bind`, read by the relaxation kernels)
         self.seen = None
 
     def bind(self, mesh) -> None:
@@ -99,28 +99,6 @@ class EquationOfStateModel(BarotropicModel):
             w = exit_kernel_mass(mesh, pts.reshape(-1, 2), cells, self.exit_kernel)
             if np.any(w > 0):
                 self.seen = np.ascontiguousarray((1.0 - w).reshape(-1, 3))
-
-    def source(self, q, ex, ey):
-        """The relaxation at the points ``q``; with :attr:`seen`, the points must be the
-        solver's interior points of every cell (3 per cell, in order), as it passes them."""
-        if self.seen is None:
-            return super().source(q, ex, ey)
-        from .exit_kernel import relaxation_seen
-
-        if len(q) != self.seen.size:
-            raise ValueError("eos with exit_kernel: sources at the cells' interior points only")
-        S = np.empty_like(q)
-        relaxation_seen(q, ex, ey, self.U_f, self._law, self.tau, self.rho_vac, self.u_max,
-                        self.seen.ravel(), S)
-        return S
-
-    def source_mean(self, Vi, ex, ey, dQ, cact):
-        if self.seen is None:
-            return super().source_mean(Vi, ex, ey, dQ, cact)
-        from .exit_kernel import relaxation_mean_seen
-
-        relaxation_mean_seen(Vi, ex, ey, self.U_f, self._law, self.tau, self.rho_vac,
-                             self.u_max, self.seen, dQ, cact)
 
     def parameters(self) -> dict:
         return {"calibration": self.calibration, "exit_kernel": self.exit_kernel,

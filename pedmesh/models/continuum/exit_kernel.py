@@ -24,15 +24,10 @@ from __future__ import annotations
 
 import math
 
-import numba as nb
 import numpy as np
 from scipy.special import erf, erfc
 
-from .fv_kernels import BLOCK, FAST, NCHUNK, PAR
-from .barotropic import _prim
-from ...speed import shape
-
-__all__ = ["exit_kernel_mass", "interior_points", "relaxation_mean_seen", "relaxation_seen"]
+__all__ = ["exit_kernel_mass", "interior_points"]
 
 
 def interior_points(mesh) -> np.ndarray:
@@ -83,44 +78,3 @@ def exit_kernel_mass(mesh, points: np.ndarray, cells: np.ndarray, R: float) -> n
         sn, tn = np.maximum(s[near], 0.0), t[near]
         w[near] += 0.25 * erfc(sn / R) * (erf((L - tn) / R) + erf(tn / R))
     return np.clip(w, 0.0, 1.0)
-
-
-@nb.njit(**FAST, inline="always")
-def _relax_point_seen(q, ex, ey, U_f, law, rho_cut, umax, f):
-    """tau times the relaxation of the state (3,) ``q`` with the speed law read at
-    ``f`` times its density (the density the social force model's people see)."""
-    r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
-    ue = U_f * shape(law, r * f)
-    return r * (ue * ex - ux), r * (ue * ey - uy)
-
-
-@nb.njit(**PAR)
-def relaxation_mean_seen(Vi, ex, ey, U_f, law, tau, rho_cut, umax, seen, dQ, cact):
-    """:func:`pedmesh.models.continuum.barotropic.relaxation_mean` with the speed law read
-    at ``seen`` (m, 3) times the density at each interior point."""
-    c = 1.0 / (3.0 * tau)
-    n_i = dQ.shape[0]
-    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
-        for b_ in range(c_, ((n_i) + BLOCK - 1) // BLOCK, NCHUNK):
-            for i in range(b_ * BLOCK, min(n_i, (b_ + 1) * BLOCK)):
-                if not cact[i]:
-                    continue
-                s1 = s2 = 0.0
-                for p in range(3):
-                    a1, a2 = _relax_point_seen(Vi[i, p], ex[3 * i + p], ey[3 * i + p], U_f,
-                                               law, rho_cut, umax, seen[i, p])
-                    s1 += a1
-                    s2 += a2
-                dQ[i, 1] += c * s1
-                dQ[i, 2] += c * s2
-
-
-@nb.njit(**PAR)
-def relaxation_seen(q, ex, ey, U_f, law, tau, rho_cut, umax, seen, S):
-    """:func:`pedmesh.models.continuum.barotropic.relaxation` at the k points with the speed
-    law read at ``seen`` (k,) times their densities."""
-    for k in nb.prange(q.shape[0]):
-        s1, s2 = _relax_point_seen(q[k], ex[k], ey[k], U_f, law, rho_cut, umax, seen[k])
-        S[k, 0] = 0.0
-        S[k, 1] = s1 / tau
-        S[k, 2] = s2 / tau
