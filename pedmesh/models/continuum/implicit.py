@@ -473,6 +473,28 @@ def _system(a, G, imp, V, areas, cf, cs, nbr):
 CG_CHUNK = 1024
 
 
+@nb.njit(cache=True, inline="always")
+def _in_order(part, nc):
+    """The sum of the chunks' partial sums ``part[:nc]``, added in order."""
+    out = 0.0
+    for c in range(nc):
+        out += part[c]
+    return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _cg_dot(x, y, part):
+    """``x . y`` over the chunks."""
+    n = x.shape[0]
+    nc = (n + CG_CHUNK - 1) // CG_CHUNK
+    for c in nb.prange(nc):
+        acc = 0.0
+        for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
+            acc += x[i] * y[i]
+        part[c] = acc
+    return _in_order(part, nc)
+
+
 @nb.njit(cache=True, parallel=True)
 def _cg_matvec_dot(indptr, indices, data, p, q, part):
     """``q = A p`` (CSR, rows in their stored order) and ``p . q``."""
@@ -487,10 +509,7 @@ def _cg_matvec_dot(indptr, indices, data, p, q, part):
             q[r] = s
             acc += p[r] * s
         part[c] = acc
-    out = 0.0
-    for c in range(nc):
-        out += part[c]
-    return out
+    return _in_order(part, nc)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -506,10 +525,7 @@ def _cg_update(alpha, p, q, x, r, part):
             r[i] = ri
             acc += ri * ri
         part[c] = acc
-    out = 0.0
-    for c in range(nc):
-        out += part[c]
-    return out
+    return _in_order(part, nc)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -545,20 +561,9 @@ def conjugate_gradients(indptr, indices, data, b, x0, rtol, maxiter):
     x = x0.copy()
     q = np.empty(n)
     _cg_matvec_dot(indptr, indices, data, x, q, part)
-    r = np.empty(n)
-    bb = 0.0
-    rr = 0.0
-    for i in range(n):
-        r[i] = b[i] - q[i]
-    for c in range((n + CG_CHUNK - 1) // CG_CHUNK):  # (the same chunked sums, in order)
-        sb = 0.0
-        sr = 0.0
-        for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
-            sb += b[i] * b[i]
-            sr += r[i] * r[i]
-        bb += sb
-        rr += sr
-    tol = rtol * np.sqrt(bb)
+    r = b - q
+    tol = rtol * np.sqrt(_cg_dot(b, b, part))
+    rr = _cg_dot(r, r, part)
     p = r.copy()
     it = 0
     while it < maxiter and not np.sqrt(rr) < tol:
