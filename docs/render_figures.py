@@ -117,23 +117,29 @@ def eikonal(path: Path = DATA / "eikonal.json") -> str:
     return "\n".join(lines)
 
 
-def threads_sfm(path: Path = DATA / "threads_sfm.json") -> str:
-    record = json.loads(path.read_text())
-    res = record["results"]
+def _kernel_table(res: dict) -> list[str]:
+    """The table of ``benchmarks/threads.py``'s kernels: median / best time on each thread
+    count and the ratios to one thread."""
     counts = [str(t) for t in res["threads"]]
-    st = res["state"]
     head = ["kernel", *(f"{t} thr. median / best [ms]" for t in counts),
             *(f"x {t} thr. median / best" for t in counts[1:])]
     rows = [[r["kernel"], *(f"{1e3 * r['median_s'][t]:.2f} / {1e3 * r['best_s'][t]:.2f}"
                             for t in counts),
              *(f"{r['ratio_median'][t]:.2f} / {r['ratio_best'][t]:.2f}" for t in counts[1:])]
             for r in res["kernels"]]
+    return _table(head, rows, "l")
+
+
+def threads_sfm(path: Path = DATA / "threads_sfm.json") -> str:
+    record = json.loads(path.read_text())
+    res = record["results"]
+    st = res["state"]
     lines = [f"The social force model ({st['preset']} preset) on `{st['room']}` with "
              f"{st['people']:,} people inside at t = {st['t']:.0f} s ({st['pairs']:,} pairs "
              f"listed), numba's `{res['threading_layer']}` threading layer; each kernel "
              f"{res['repeats']} times per thread count, the counts interleaved; *x N thr.*: "
              "the time on N threads over that on one.", ""]
-    lines += _table(head, rows, "l")
+    lines += _kernel_table(res)
     whole = res.get("example2_processes")
     if whole:
         rows = [[str(r["threads"]), f"{r['median_s']:.1f}", f"{r['best_s']:.1f}",
@@ -152,19 +158,12 @@ def threads_sfm(path: Path = DATA / "threads_sfm.json") -> str:
 def threads_eos(path: Path = DATA / "threads_eos.json") -> str:
     record = json.loads(path.read_text())
     res = record["results"]
-    counts = [str(t) for t in res["threads"]]
     st = res["state"]
-    head = ["kernel", *(f"{t} thr. median / best [ms]" for t in counts),
-            *(f"x {t} thr. median / best" for t in counts[1:])]
-    rows = [[r["kernel"], *(f"{1e3 * r['median_s'][t]:.2f} / {1e3 * r['best_s'][t]:.2f}"
-                            for t in counts),
-             *(f"{r['ratio_median'][t]:.2f} / {r['ratio_best'][t]:.2f}" for t in counts[1:])]
-            for r in res["kernels"]]
     lines = [f"`{st['model']}` on `{st['room']}` ({st['cells']:,} cells, {st['inside']:,.0f} "
              f"people inside at t = {st['t']:.0f} s), numba's `{res['threading_layer']}` "
              f"threading layer; each kernel {res['repeats']} times per thread count, the "
              "counts interleaved; *x N thr.*: the time on N threads over that on one.", ""]
-    lines += _table(head, rows, "l")
+    lines += _kernel_table(res)
     prof = res.get("profile")
     if prof:
         lines += ["", f"A profile of {prof['steps']} whole steps on one thread (cProfile, "
