@@ -600,7 +600,7 @@ class RunWriter:
         frame_data naming each frame's geometry), which PedPy 1.x and JuPedSim read."""
         import shapely
 
-        con = sqlite3.connect(self.dir / "trajectories.sqlite")
+        con = sqlite3.connect(self.dir / "trajectories.sqlite", check_same_thread=False)
         con.execute("PRAGMA synchronous=OFF")  # survives a killed process; no fsync per frame
         con.execute("CREATE TABLE trajectory_data (frame INTEGER NOT NULL, id INTEGER NOT NULL,"
                     " pos_x REAL NOT NULL, pos_y REAL NOT NULL, ori_x REAL NOT NULL,"

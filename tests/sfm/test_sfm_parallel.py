@@ -94,6 +94,61 @@ def test_cells_and_pair_list_are_the_serial_ones(seed, with_density):
                             lay, pos) == (-1, -1)
 
 
+def _work(start, nx, ny):
+    """The distances the half-stencil search tests per cell (counted here with numpy)."""
+    m = np.diff(start).reshape(nx, ny)
+    pad = np.pad(m, 1)
+    near = pad[2:, :-2] + pad[2:, 1:-1] + pad[2:, 2:] + pad[1:-1, 2:]
+    return np.where(m > 0, m * (m - 1) // 2 + m * near + m, 0).ravel()
+
+
+def test_blocks_share_the_work():
+    """A crowd packed in one corner and sparse elsewhere: cut by head count, the block
+    holding the packed cells would get most of the distances to test; the blocks are cut by
+    those distances instead, so each gets its share up to one cell's work."""
+    rng = np.random.default_rng(5)
+    n = 1500
+    x = np.concatenate([rng.uniform([0.1, 0.1], [4.0, 4.0], (1000, 2)),
+                        rng.uniform([4.0, 0.1], [29.9, 17.9], (n - 1000, 2))])
+    cell = 2.1
+    nx, ny = int(30 / cell) + 1, int(18 / cell) + 1
+    start, order = np.zeros(nx * ny + 1, np.int64), np.zeros(n, np.int64)
+    K.build_cells(x, n, 0.0, 0.0, 1.0 / cell, nx, ny, start, order)
+    work = _work(start, nx, ny)
+    for nblocks in (2, 3, 4):
+        lay, _ = K.pair_blocks(n, start, order, nx, ny, nblocks)
+        cuts = lay[:, 0]
+        assert cuts[0] == 0 and cuts[-1] == nx * ny and np.all(np.diff(cuts) >= 0)
+        share = np.array([work[cuts[b]:cuts[b + 1]].sum() for b in range(nblocks)])
+        assert share.max() <= work.sum() / nblocks + work.max(), (nblocks, share)
+        # cut by head count, one block would have had far more than its share
+        by_heads = np.searchsorted(start, np.arange(nblocks + 1) * n // nblocks)
+        by_heads[-1] = nx * ny
+        old = np.array([work[by_heads[b]:by_heads[b + 1]].sum() for b in range(nblocks)])
+        assert old.max() > 1.3 * work.sum() / nblocks, (nblocks, old)
+
+
+def test_everyone_in_one_cell():
+    """All in one cell: the other blocks are empty, and the list and densities are still
+    the serial ones."""
+    rng = np.random.default_rng(6)
+    n = 60
+    x = rng.uniform([10.2, 6.4], [12.5, 8.3], (n, 2))
+    nx, ny = 15, 9
+    start, order = np.zeros(nx * ny + 1, np.int64), np.zeros(n, np.int64)
+    S.build_cells(x, n, 0.0, 0.0, 1.0 / 2.1, nx, ny, start, order)
+    assert np.count_nonzero(np.diff(start)) <= 4
+    cap = 1000 * n  # (one block holds every pair: its share of pi/pj must take them)
+    pi0, pj0, rho0 = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
+    m0 = S.build_pairs(x, n, start, order, nx, ny, 1.4, 1.4, pi0, pj0, rho0, 2.1, 0.7, True)
+    for nblocks in (2, 4, 8):
+        lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
+        pi, pj, rho = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
+        m = K.list_pairs(x, n, start, order, nx, ny, 1.4, 1.4, pi, pj, rho, 2.1, 0.7, True,
+                         lay, pos)
+        assert m == m0 and _same(pi[:m[0]], pi0[:m0[0]]) and _same(rho, rho0), nblocks
+
+
 @pytest.mark.parametrize("lam", [1.0, 0.4])
 @pytest.mark.parametrize("with_density", [True, False])
 def test_pair_forces_are_the_serial_ones(lam, with_density):

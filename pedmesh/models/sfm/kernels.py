@@ -97,19 +97,54 @@ def _stencil_cell(ci, cj, q, nx, ny):
     return ni * ny + nj
 
 
+@nb.njit(cache=True, inline="always")
+def _cell_work(c, cell_start, nx, ny):
+    """The distances the pair search tests for the pedestrians of cell ``c``: each with
+    the later ones of its own cell and with everyone in the four other cells of its half
+    stencil (plus one per pedestrian, for an empty stencil)."""
+    m = cell_start[c + 1] - cell_start[c]
+    if m == 0:
+        return 0
+    ci = c // ny
+    cj = c % ny
+    near = 0
+    for q in range(1, 5):
+        c2 = _stencil_cell(ci, cj, q, nx, ny)
+        if c2 >= 0:
+            near += cell_start[c2 + 1] - cell_start[c2]
+    return m * (m - 1) // 2 + m * near + m
+
+
 @nb.njit(cache=True)
 def pair_blocks(n, cell_start, cell_order, nx, ny, nblocks):
-    """Cut the cells into ``nblocks`` runs of consecutive cells with about equally many
-    pedestrians: ``lay`` (nblocks + 1, 5) int64 with block b's first cell in ``lay[b, 0]``
+    """Cut the cells into ``nblocks`` runs of consecutive cells with about equal work:
+    ``lay`` (nblocks + 1, 5) int64 with block b's first cell in ``lay[b, 0]``
     (``lay[nblocks, 0]`` = the number of cells); the other columns are filled by
     :func:`list_pairs`. ``pos`` (n,): each pedestrian's place in the cell order (the
     inverse of ``cell_order``): a block's pedestrians are the places ``cell_start[lay[b,
     0]] ...``, and its thread sums into arrays by place, so that two threads never write
-    to the same stretch of memory (empty for one block, which sums by row)."""
+    to the same stretch of memory (empty for one block, which sums by row).
+
+    A cell's work is the number of distances its pedestrians test (:func:`_cell_work`):
+    it grows with the square of the local density, so a crowd packed at a door would
+    leave one thread with most of it if the cells were cut by head count. Where the cut
+    falls changes no result (the sums are taken in the serial order on any blocks)."""
     nc = nx * ny
     lay = np.zeros((nblocks + 1, 5), np.int64)
-    for b in range(1, nblocks):
-        lay[b, 0] = np.searchsorted(cell_start[: nc + 1], (b * n) // nblocks)
+    if nblocks > 1:
+        total = 0
+        for c in range(nc):
+            total += _cell_work(c, cell_start, nx, ny)
+        b = 1
+        done = 0
+        for c in range(nc):
+            while b < nblocks and done * nblocks >= b * total:
+                lay[b, 0] = c
+                b += 1
+            done += _cell_work(c, cell_start, nx, ny)
+        while b < nblocks:
+            lay[b, 0] = nc
+            b += 1
     lay[nblocks, 0] = nc
     pos = np.empty(n if nblocks > 1 else 0, np.int64)  # (one block sums by row)
     if nblocks > 1:
