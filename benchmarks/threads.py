@@ -6,6 +6,10 @@ the whole step, is timed on every thread count asked for, the counts alternating
 median and best time per call on each thread count, and the speed-up against one thread
 (median over median, best over best).
 
+* Every run first times a reference with nothing serial and nothing shared (independent
+  sums of exponentials): what it gains on more threads is the most this machine gives (a
+  virtual machine's two cores scaled it to only 0.57-0.68 here), and the model kernels'
+  ratios are to be read against it.
 * ``--model eos`` (or another continuum model; default room: the 100,000-person venue,
   65,000 cells): the kernels of ``FVSolver.residual`` and of the implicit correction (the
   reconstruction, the high- and first-order fluxes, the flux limiter with the divergence,
@@ -119,6 +123,29 @@ def _time(cases, counts, repeats, context=None) -> list[dict]:
             print(f"{name:<44} {cells} {rat}", flush=True)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     return rows
+
+
+def ceiling_case():
+    """The reference: a kernel with nothing serial and nothing shared (each thread sums
+    exponentials of its own entries, about 40 ms on one thread). What it gains on more
+    threads is all this machine gives; the model kernels are judged against it, measured
+    in the same run (a virtual machine's cores may share a physical core or be lent to
+    other guests)."""
+    import math
+
+    import numba as nb
+
+    @nb.njit(parallel=True, cache=True)
+    def independent(a, out):
+        for i in nb.prange(a.shape[0]):
+            s = 0.0
+            for k in range(200):
+                s += math.exp(-a[i] * k * 1e-3)
+            out[i] = s
+
+    a = np.random.default_rng(0).random(48_000)
+    out = np.empty_like(a)
+    return "reference: independent work (ceiling)", lambda: independent(a, out)
 
 
 def continuum_cases(args):
@@ -525,7 +552,7 @@ def main(argv=None) -> int:
     layer = threading_layer()
     print(f"numba {numba.__version__}, threading layer '{layer}' (oneTBB "
           f"{tbb_load_status()}), NUMBA_NUM_THREADS {numba.config.NUMBA_NUM_THREADS}")
-    rows = _time(cases, counts, args.repeats, context) if cases else []
+    rows = _time([ceiling_case(), *cases], counts, args.repeats, context)
     run = info.pop("run", None)
     profile = serial_profile(run, args.profile) if args.profile and run is not None else None
     whole = example2_processes(counts, args.example2, against=args.against,

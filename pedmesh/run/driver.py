@@ -17,6 +17,8 @@ from ..parameters import DEFAULT_T_END_S
 from .._signals import request_stop, stop_on_signals, stop_requested
 from ..errors import ParameterError, PedmeshError, SimulationError
 from ..models import CONTINUUM, DenseFrames, ModelEntry, get_model
+from . import background
+from .background import BackgroundWriter, use_background
 from .output import RunWriter, _clean, file_sha256
 from ..models.protocol import RunModel
 
@@ -271,9 +273,13 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
             extra["warnings"] = list(run.warnings)
             for w in run.warnings:
                 print(f"pedmesh: warning: {w}", file=sys.stderr)
+        if use_background(plan.parameters.get("threads"), writer):
+            writer = BackgroundWriter(writer)  # (the steps on threads, the output beside)
         writer.start(extra)
         bar = _progress_bar(name, plan.t_end, quiet)
         frame = _loop(run, writer, plan.t_end, bar)
+        if isinstance(writer, BackgroundWriter):
+            writer.drain()  # (a write error is the run's)
         status = "finished" if run.done else "stopped at t_end"
     except KeyboardInterrupt:
         status = "interrupted"
@@ -295,6 +301,8 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
             except Exception as exc:  # the summary of a broken run: keep what we know
                 result = {"summary_error": f"{type(exc).__name__}: {exc}"}
             if plan.safety:
+                if isinstance(writer, BackgroundWriter):  # (the measures read the output)
+                    writer.drain(raise_error=False)  # (an error: the writer's finish says)
                 result["safety"] = _safety(plan, writer, result)
         summary = writer.finish(status=status, error=error,
                                 t_stop=run.t if run is not None else 0.0, frames=frame,

@@ -42,6 +42,10 @@ class MemoryWriter:
             self.header.update(header)
             self.summary.update(header)
 
+    def call(self, fn, *args: Any, **kwargs: Any) -> None:
+        """``fn(self, *args, **kwargs)`` (:meth:`pedmesh.run.output.RunWriter.call`)."""
+        fn(self, *args, **kwargs)
+
     def sample(self, t: float, evacuated: float) -> None:
         self.evacuation.append((float(t), float(evacuated)))
 

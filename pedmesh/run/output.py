@@ -495,6 +495,14 @@ class RunWriter:
         except OSError as exc:
             raise _write_error(self._summary_path, exc) from None
 
+    def call(self, fn, *args: Any, **kwargs: Any) -> None:
+        """``fn(self, *args, **kwargs)``: output that is first computed from the model's
+        state (e.g. a kernel average) and then written with this writer's methods. A
+        background writer (:mod:`pedmesh.run.background`) makes the call on its own
+        thread, in order with the other writes, so ``fn`` must use its arguments and
+        nothing the model changes as it steps."""
+        fn(self, *args, **kwargs)
+
     def sample(self, t: float, evacuated: float) -> None:
         """Append a row to evacuation.csv."""
         val = f"{int(evacuated)}" if float(evacuated).is_integer() else f"{evacuated:.6g}"

@@ -227,6 +227,37 @@ def test_full_disk_fails_naming_the_file(geometries_dir, tmp_path, monkeypatch, 
     assert (out / ".lock").stat().st_size == 0  # the reserve is given back
 
 
+@pytest.mark.parametrize("model, where, named", [
+    ("eos", "density frame", "density_000002.vtu"),
+    ("sfm", "trajectories.sqlite", "trajectories.sqlite"),
+])
+def test_full_disk_on_the_background_writer(geometries_dir, tmp_path, monkeypatch, capsys,
+                                            model, where, named):
+    """On two threads the output is written on a thread of its own
+    (pedmesh.run.background): its failed write ends the run the same way."""
+    from pedmesh.run import driver
+
+    made = []
+
+    class Counted(driver.background.BackgroundWriter):
+        def __init__(self, writer):
+            made.append(1)
+            super().__init__(writer)
+
+    monkeypatch.setattr(driver, "BackgroundWriter", Counted)
+    disk = FullDisk(monkeypatch)
+    _inject(monkeypatch, disk, where)
+    out = tmp_path / "full"
+    status = main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--model", model,
+                   "--out", str(out), "-q", "--t-end", "5", "--param", "threads=2"])
+    line = _one_line_error(capsys)
+    assert made and disk.full and status == 2
+    assert named in line and (ENOSPC_TEXT in line or "disk is full" in line), line
+    s = json.loads((out / "summary.json").read_text())
+    assert s["status"] == "failed" and named in s["error"], s.get("error")
+    assert _parts(out) == [] and (out / ".lock").stat().st_size == 0
+
+
 def test_full_disk_in_python_is_an_oserror_and_a_pedmesh_error(geometries_dir, tmp_path,
                                                                monkeypatch):
     disk = FullDisk(monkeypatch)

@@ -213,7 +213,19 @@ def test_steps_are_the_serial_ones(tmp_path, monkeypatch):
 
 
 @two_threads
-def test_run_files_are_the_same_on_one_and_two_threads(tmp_path):
+def test_run_files_are_the_same_on_one_and_two_threads(tmp_path, monkeypatch):
+    """Every file of the run but the summary (its wall times), byte for byte; on 2 threads
+    the output is written by the background writer (pedmesh.run.background)."""
+    from pedmesh.run import background, driver
+
+    made = []
+
+    class Counted(background.BackgroundWriter):
+        def __init__(self, writer):
+            made.append(1)
+            super().__init__(writer)
+
+    monkeypatch.setattr(driver, "BackgroundWriter", Counted)
     room = _room(tmp_path)
     files = {}
     for threads in (1, 2):
@@ -222,7 +234,11 @@ def test_run_files_are_the_same_on_one_and_two_threads(tmp_path):
                      f"threads={threads}", "--t-end", "12", "--out", str(out), "-q"]) == 0
         summary = json.loads((out / "summary.json").read_text())
         assert summary["parameters"]["threads"] == threads
-        files[threads] = {f: (out / f).read_bytes() for f in ("exits.csv", "trajectories.txt")}
+        assert len(made) == threads - 1  # (in the background on 2 threads only)
+        files[threads] = {str(f.relative_to(out)): f.read_bytes() for f in out.rglob("*")
+                          if f.is_file() and f.name not in ("summary.json", ".lock")}
+    assert {"exits.csv", "trajectories.txt", "trajectories.sqlite", "outflow_kernel.csv",
+            "density.pvd", "pedestrians.pvd"} <= set(files[1])
     assert files[1]["exits.csv"].count(b"\n") > 10  # people left through the doors
     assert files[1] == files[2]
 

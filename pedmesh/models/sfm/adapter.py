@@ -156,14 +156,18 @@ class SFMRun:
         ids = self.sim.exit_id
         return np.bincount(ids[ids >= 0], minlength=len(self.mesh.exit_names)).astype(float)
 
-    def kernel_outflow(self) -> np.ndarray:
+    def kernel_outflow(self, positions: np.ndarray | None = None,
+                       velocities: np.ndarray | None = None) -> np.ndarray:
         """Flow [ped/s] through each exit from the kernel density and kernel velocity at the
-        exit (the paper's f_c for the particle model). It sees only the pedestrians still
-        inside, so it reads about half the crossing rate (outflow_kernel.csv)."""
+        exit (the paper's f_c for the particle model), of the crowd now or of the
+        ``positions`` [m] and ``velocities`` [m/s] given. It sees only the pedestrians
+        still inside, so it reads about half the crossing rate (outflow_kernel.csv)."""
         from ...analysis import particle_outflow
 
-        return particle_outflow(mesh=self.mesh, positions=self.sim.positions,
-                                velocities=self.sim.velocities, R=self.params.R)
+        if positions is None:
+            positions, velocities = self.sim.positions, self.sim.velocities
+        return particle_outflow(mesh=self.mesh, positions=positions, velocities=velocities,
+                                R=self.params.R)
 
     def record(self, writer, final: bool = False) -> None:
         """Trajectory frames when due; every sample interval exits.csv rows and the kernel
@@ -175,10 +179,9 @@ class SFMRun:
         if t >= self._next_record - 1e-9 or final:
             self._next_record += self.sample_interval * max(
                 1, math.floor((t - self._next_record) / self.sample_interval + 1e-9) + 1)
-            f = self.kernel_outflow()
-            # rows as fields: the writer quotes exit names with commas or newlines
-            writer.append_rows("outflow_kernel.csv", ["t", *self.mesh.exit_names],
-                               [[f"{t:.4f}", *(f"{v:.6g}" for v in f)]])
+            # computed where the writer writes (on its own thread, if it has one)
+            writer.call(_kernel_outflow_row, self.kernel_outflow, list(self.mesh.exit_names),
+                        t, sim.positions, sim.velocities)
             new = np.flatnonzero(np.isfinite(sim.exit_time) & ~self._exits_out)
             new = new[np.argsort(sim.exit_time[new], kind="stable")]
             names = self.mesh.exit_names
@@ -206,8 +209,6 @@ class SFMRun:
         self._traj_frame += 1
 
     def write_frame(self, writer, frame: int) -> None:
-        from ...analysis import kernel_velocity
-
         sim = self.sim
         v = sim.velocities
         writer.pedestrian_frame(sim.t, sim.positions, {
@@ -216,10 +217,8 @@ class SFMRun:
             "speed": np.hypot(v[:, 0], v[:, 1]) if len(v) else np.zeros(0),
             "density": sim.densities,
         })
-        kv = kernel_velocity(positions=sim.positions, velocities=v, points=self.mesh.points,
-                             R=self.params.R)
-        writer.density_frame(sim.t, self.mesh, point_data={"density": sim.vertex_density(),
-                                                           "velocity": kv})
+        writer.call(_density_frame, sim.t, self.mesh, sim.vertex_density(), sim.positions, v,
+                    self.params.R)
 
     def summary(self) -> dict[str, Any]:
         sim = self.sim
@@ -240,3 +239,23 @@ class SFMRun:
             "trajectory_frames": self._traj_frame,
             "time_split_s": {"forces": tm.forces, "settle": tm.settle, "routing": tm.routing},
         }
+
+
+def _kernel_outflow_row(writer, outflow, names, t: float, positions: np.ndarray,
+                        velocities: np.ndarray) -> None:
+    """The row of outflow_kernel.csv at time ``t`` [s]: ``outflow(positions, velocities)``
+    [ped/s] per exit (:meth:`SFMRun.kernel_outflow`)."""
+    f = outflow(positions, velocities)
+    # rows as fields: the writer quotes exit names with commas or newlines
+    writer.append_rows("outflow_kernel.csv", ["t", *names],
+                       [[f"{t:.4f}", *(f"{v:.6g}" for v in f)]])
+
+
+def _density_frame(writer, t: float, mesh, density: np.ndarray, positions: np.ndarray,
+                   velocities: np.ndarray, R: float) -> None:
+    """A frame of density.pvd: the kernel density [ped/m^2] at the vertices and the kernel
+    velocity [m/s] there of the crowd at ``positions`` [m] moving at ``velocities``."""
+    from ...analysis import kernel_velocity
+
+    kv = kernel_velocity(positions=positions, velocities=velocities, points=mesh.points, R=R)
+    writer.density_frame(t, mesh, point_data={"density": density, "velocity": kv})

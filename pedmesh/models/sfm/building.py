@@ -320,11 +320,14 @@ class BuildingSFMRun(SFMRun):
         return np.bincount(ids[ids >= 0], minlength=len(self.mesh.exit_names)).astype(
             float)[: len(self.mesh.exit_names)]
 
-    def kernel_outflow(self) -> np.ndarray:
+    def kernel_outflow(self, positions: np.ndarray | None = None,
+                       velocities: np.ndarray | None = None) -> np.ndarray:
         from ...analysis import particle_outflow
 
-        f = particle_outflow(mesh=self.atlas.open, positions=self.sim.positions,
-                             velocities=self.sim.velocities, R=self.params.R)
+        if positions is None:
+            positions, velocities = self.sim.positions, self.sim.velocities
+        f = particle_outflow(mesh=self.atlas.open, positions=positions,
+                             velocities=velocities, R=self.params.R)
         return np.asarray(f)[: len(self.mesh.exit_names)]
 
     def _trajectory_rows(self, left: np.ndarray):
