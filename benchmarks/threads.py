@@ -371,7 +371,7 @@ def sfm_cases(args):
 #: run inside an Example 2 process with ``--split``: ``pedmesh run`` with timers around the
 #: parts of the output (the wrapped names exist in every version since the run protocol)
 _SPLIT = r"""
-import functools, json, os, sys, time
+import functools, json, os, sys, threading, time
 t_start = time.perf_counter()
 from pedmesh.models.sfm.adapter import SFMRun
 from pedmesh.run.output import RunWriter
@@ -384,8 +384,10 @@ def wrap(owner, name, key):
         t0 = time.perf_counter()
         try:
             return f(*a, **k)
-        finally:
-            acc[key] = acc.get(key, 0.0) + time.perf_counter() - t0
+        finally:  # (the background writer's share apart: it overlaps the steps)
+            k = key + (" (writer)" if threading.current_thread().name == "pedmesh-writer"
+                       else "")
+            acc[k] = acc.get(k, 0.0) + time.perf_counter() - t0
     setattr(owner, name, g)
 wrap(SFMRun, "step", "steps")
 wrap(SFMRun, "_trajectory_frame", "trajectories")
@@ -394,6 +396,7 @@ wrap(SFMRun, "record", "record")
 wrap(SFMRun, "write_frame", "vtk frames")
 wrap(RunWriter, "pedestrian_frame", "pedestrians.pvd")
 wrap(RunWriter, "density_frame", "density.pvd")
+wrap(RunWriter, "trajectory_frame", "trajectory files")  # (printed as the writer's only)
 wrap(driver, "_safety", "safety")
 from pedmesh.cli import main
 try:
@@ -409,6 +412,10 @@ sys.exit(rc)
 #: the parts printed with ``--split`` (seconds per process)
 _PARTS = ("steps", "trajectories", "vtk frames", "pedestrians.pvd", "density.pvd",
           "kernel outflow", "exits.csv etc.", "safety", "process")
+#: the parts written by the background writer (pedmesh.run.background) on a run with more
+#: than one thread: on its own thread, beside the steps (not in the stepping thread's time)
+_WRITER_PARTS = ("trajectory files (writer)", "pedestrians.pvd (writer)", "density.pvd (writer)",
+                 "kernel outflow (writer)")
 #: summary.json's fields that differ between two runs of the same thing
 _VOLATILE = {"wall_time_s", "time_split_s", "pid"}
 
@@ -494,14 +501,17 @@ def example2_processes(counts, repeats, *, against: str | None = None,
                    "median_s": med, "best_s": best,
                    "ratio_median": med / statistics.median(v1), "ratio_best": best / min(v1)}
             if split:
-                row["parts_s"] = {k: [p.get(k, 0.0) for p in parts[label, t]] for k in _PARTS}
+                row["parts_s"] = {k: [p.get(k, 0.0) for p in parts[label, t]]
+                                  for k in (*_PARTS, *_WRITER_PARTS)}
             rows.append(row)
             print(f"  {label}, {t} thread(s): median {med:6.1f} s, best {best:6.1f} s, CPU "
                   f"median {statistics.median(cpu[label, t]):6.1f} s; x{row['ratio_median']:.2f}"
                   f" median, x{row['ratio_best']:.2f} best (against {counts[0]} thread)")
             if split:
-                for k in _PARTS:
+                for k in (*_PARTS, *_WRITER_PARTS):
                     x = row["parts_s"][k]
+                    if k in _WRITER_PARTS and not any(x):
+                        continue
                     print(f"      {k:<18} median {statistics.median(x):6.2f} s, best "
                           f"{min(x):6.2f} s")
     print(f"  T50/T90/T100/steps the same on every run: {same}")
@@ -552,7 +562,7 @@ def main(argv=None) -> int:
     layer = threading_layer()
     print(f"numba {numba.__version__}, threading layer '{layer}' (oneTBB "
           f"{tbb_load_status()}), NUMBA_NUM_THREADS {numba.config.NUMBA_NUM_THREADS}")
-    rows = _time([ceiling_case(), *cases], counts, args.repeats, context)
+    rows = _time([*cases, ceiling_case()], counts, args.repeats, context)
     run = info.pop("run", None)
     profile = serial_profile(run, args.profile) if args.profile and run is not None else None
     whole = example2_processes(counts, args.example2, against=args.against,
