@@ -703,7 +703,7 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
           const_u, use_const, F, rho, e, with_density, toff, tbuf, space, rs, wmap, wgeo,
-          cf, ue, lay, pos, cell_start, hinge, upd=0, xb=None, vb=None, dt=0.0, rho_out=None):
+          cf, ue, lay, pos, cell_start, hinge):
     """Acceleration of every pedestrian: pair forces (over the pair list), walls and the
     desired-velocity term (with the densities ``rho`` evaluated here if ``with_density``,
     else as they are). Per pedestrian i: body radius ``rad[i]`` [m], free speed ``u0[i]``
@@ -726,11 +726,6 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     blocks of the pair list (:func:`pair_accel_blocks`), over the pedestrians (walls,
     triangle, direction, desired speed and driving term, in the order the serial kernels
     added them).
-
-    ``upd``: the Runge-Kutta stage ``1``, ``2`` or ``3`` of :func:`rk3_step` whose update
-    each pedestrian takes in the last loop as soon as its acceleration is complete
-    (:func:`_stage_update`, with the step's ``xb``, ``vb``, ``dt`` and ``rho_out``), so
-    that the stage needs no loop of its own; ``0``: none.
     """
     crowd = space[3] > 1.0
     soc = rad
@@ -774,8 +769,6 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
             if use_const:
                 F[i, 0] += (const_u[0] - v[i, 0]) * inv_tau
                 F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
-                if upd > 0:
-                    _stage_update(i, upd, x, v, F, xb, vb, dt, rho, rho_out)
             else:
                 _follow_one(i, points, triangles, nbr, tri, x, dpack)
                 tbuf[i] = tri[i] + toff[i] if tri[i] >= 0 else -1
@@ -788,32 +781,6 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
                                        space[3])
             F[i, 0] += (ue[i] * e[i, 0] - v[i, 0]) * inv_tau
             F[i, 1] += (ue[i] * e[i, 1] - v[i, 1]) * inv_tau
-            if upd > 0:
-                _stage_update(i, upd, x, v, F, xb, vb, dt, rho, rho_out)
-
-
-@nb.njit(cache=True, inline="always")
-def _stage_update(i, upd, x, v, F, xb, vb, dt, rho, rho_out):
-    """Pedestrian i's update of Shu-Osher SSP-RK3 stage ``upd``, from the stage's state
-    (``x``, ``v``) and acceleration ``F``. Stage 1: ``xb``, ``vb`` receive u1 = u + dt
-    L(u) and ``rho_out`` the densities; stage 2: ``x``, ``v`` become u2 = 3/4 u + 1/4 (u1 +
-    dt L(u1)) with u = (``xb``, ``vb``); stage 3: ``xb``, ``vb`` become u_new = 1/3 u +
-    2/3 (u2 + dt L(u2))."""
-    if upd == 1:
-        rho_out[i] = rho[i]
-        for d in range(2):
-            xb[i, d] = x[i, d] + dt * v[i, d]
-            vb[i, d] = v[i, d] + dt * F[i, d]
-    elif upd == 2:
-        for d in range(2):
-            x1 = x[i, d]
-            v1 = v[i, d]
-            x[i, d] = 0.75 * xb[i, d] + 0.25 * (x1 + dt * v1)
-            v[i, d] = 0.75 * vb[i, d] + 0.25 * (v1 + dt * F[i, d])
-    else:
-        for d in range(2):
-            xb[i, d] = xb[i, d] / 3.0 + 2.0 / 3.0 * (x[i, d] + dt * v[i, d])
-            vb[i, d] = vb[i, d] / 3.0 + 2.0 / 3.0 * (v[i, d] + dt * F[i, d])
 
 
 # ------------------------------------------------------------------ exits and reflection
@@ -915,7 +882,7 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
         out[p] = acc
 
 
-@nb.njit(cache=True, nogil=True)  # (its loops are those of the kernels it calls)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
@@ -952,7 +919,12 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue, lay, pos, cell_start, hinge, 1, xs, vs, dt, rho_out)
+          wgeo, cf, ue, lay, pos, cell_start, hinge)
+    for i in nb.prange(n):
+        rho_out[i] = rho[i]
+        for d in range(2):
+            xs[i, d] = x[i, d] + dt * v[i, d]
+            vs[i, d] = v[i, d] + dt * F[i, d]
     # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
     n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
         x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
@@ -962,7 +934,13 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue, lay, pos, cell_start, hinge, 2, x, v, dt, rho_out)
+          wgeo, cf, ue, lay, pos, cell_start, hinge)
+    for i in nb.prange(n):
+        for d in range(2):
+            x1 = xs[i, d]
+            v1 = vs[i, d]
+            xs[i, d] = 0.75 * x[i, d] + 0.25 * (x1 + dt * v1)
+            vs[i, d] = 0.75 * v[i, d] + 0.25 * (v1 + dt * F[i, d])
     # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2)); a list rebuilt for stage 2 has no skin
     n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
         x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
@@ -972,7 +950,11 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
           m, R, tau, u0, law, const_u, use_const, F, rho, e, every, toff, tbuf, space, rs, wmap,
-          wgeo, cf, ue, lay, pos, cell_start, hinge, 3, x, v, dt, rho_out)
+          wgeo, cf, ue, lay, pos, cell_start, hinge)
+    for i in nb.prange(n):
+        for d in range(2):
+            x[i, d] = x[i, d] / 3.0 + 2.0 / 3.0 * (xs[i, d] + dt * vs[i, d])
+            v[i, d] = v[i, d] / 3.0 + 2.0 / 3.0 * (vs[i, d] + dt * F[i, d])
     return n_near + n_far
 
 
