@@ -88,10 +88,8 @@ def _thread_counts(text: str | None) -> list[int]:
 
 
 def _time(cases, counts, repeats, context=None) -> list[dict]:
-    """Time each case on each thread count, the counts alternating and the cases taken in
-    turn (repeat 1 of every case, then repeat 2, ...): a shared machine's slow spells,
-    which on the development VM last seconds, then hit every case and count alike instead
-    of all repeats of one case. Print and return the rows (times in seconds)."""
+    """Time each case on each thread count, the counts alternating; print and return the
+    rows (times in seconds)."""
     import contextlib
 
     import numba
@@ -102,21 +100,19 @@ def _time(cases, counts, repeats, context=None) -> list[dict]:
     print(f"{'kernel':<44} {head} {ratios}")
     rows = []
     with context():
-        times = {name: {t: [] for t in counts} for name, _ in cases}
         for name, fn in cases:
+            times = {t: [] for t in counts}
             for t in counts:  # compile / warm each
                 numba.set_num_threads(t)
                 fn()
-        for _ in range(repeats):
-            for name, fn in cases:
+            for _ in range(repeats):
                 for t in counts:
                     numba.set_num_threads(t)
                     a = time.perf_counter()
                     fn()
-                    times[name][t].append(time.perf_counter() - a)
-        for name, _ in cases:
-            med = {t: statistics.median(v) for t, v in times[name].items()}
-            best = {t: min(v) for t, v in times[name].items()}
+                    times[t].append(time.perf_counter() - a)
+            med = {t: statistics.median(v) for t, v in times.items()}
+            best = {t: min(v) for t, v in times.items()}
             row = {"kernel": name, "median_s": med, "best_s": best,
                    "ratio_median": {t: med[t] / med[1] for t in counts},
                    "ratio_best": {t: best[t] / best[1] for t in counts}}

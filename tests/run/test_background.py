@@ -123,3 +123,23 @@ def test_when_the_background_is_used():
     assert not use_background(2, mem)  # (output kept in memory: nothing to overlap)
     assert not use_background(1, Recorder())
     assert use_background(2, Recorder())
+
+
+@pytest.mark.skipif(__import__("numba").config.NUMBA_NUM_THREADS < 2,
+                    reason="numba has fewer than 2 threads here")
+def test_a_continuum_run_writes_the_same_files_in_the_background(geometries_dir, tmp_path):
+    """eos on 1 thread (output in the foreground) and on 2 (on the writer thread): every
+    file but the summary byte for byte."""
+    from pedmesh.cli import main
+
+    files = {}
+    for threads in (1, 2):
+        out = tmp_path / f"t{threads}"
+        assert main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--model",
+                     "eos", "--t-end", "6", "--param", f"threads={threads}", "--out",
+                     str(out), "-q"]) == 0
+        files[threads] = {str(f.relative_to(out)): f.read_bytes() for f in out.rglob("*")
+                          if f.is_file() and f.name not in ("summary.json", ".lock")}
+    assert {"evacuation.csv", "outflow.csv", "density.pvd"} <= set(files[1])
+    assert len([f for f in files[1] if f.endswith(".vtu")]) > 3
+    assert files[1] == files[2]
