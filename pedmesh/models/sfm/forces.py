@@ -1,5 +1,7 @@
 """The pair force of the social force model, one definition for the pairs, the walls, the
-pairs across a building's stair edges and the calibration."""
+pairs across a building's stair edges and the calibration; and a pair's two accelerations
+with the field of vision, one definition for the pairs in the cell list and those across
+a building's stair edges."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ import math
 
 import numba as nb
 
-__all__ = ["pair_force"]
+__all__ = ["pair_force", "pair_terms"]
 
 
 @nb.njit(cache=True, inline="always")
@@ -34,3 +36,26 @@ def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij):
         fx += ft * tx
         fy += ft * ty
     return fx, fy
+
+
+@nb.njit(cache=True, inline="always")
+def pair_terms(dx, dy, d, dvx, dvy, rij, sij, A, invB, k, kappa, inv_m, lam, eix, eiy, ejx,
+               ejy):
+    """The accelerations [m/s^2] a pair gives: ``(aix, aiy, ajx, ajy)``, i's to add and j's
+    to subtract (:func:`pair_force` over the mass, ``inv_m`` = 1/m). With a field of vision
+    ``lam`` < 1 the social repulsion on each is weighted by lam + (1 - lam) (1 + cos)/2,
+    cos the cosine between one's direction (``eix, eiy``; ``ejx, ejy``) and the other
+    (so the two differ); with ``lam`` = 1 both are the pair force (Newton's third law)."""
+    if lam < 1.0:
+        fx, fy = pair_force(dx, dy, d, dvx, dvy, rij, 0.0, invB, k, kappa, sij)
+        fs = A * math.exp((sij - d) * invB) / d
+        ci = -(dx * eix + dy * eiy) / d
+        cj = (dx * ejx + dy * ejy) / d
+        wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
+        wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
+        return ((fx + wi * fs * dx) * inv_m, (fy + wi * fs * dy) * inv_m,
+                (fx + wj * fs * dx) * inv_m, (fy + wj * fs * dy) * inv_m)
+    fx, fy = pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij)
+    fx *= inv_m
+    fy *= inv_m
+    return fx, fy, fx, fy

@@ -16,7 +16,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .forces import pair_force
+from .forces import pair_terms
 
 __all__ = ["hinge_pairs", "hinge_accel", "hinge_density"]
 
@@ -114,28 +114,14 @@ def hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, 
         d2 = dx * dx + dy * dy
         if not (d2 < rc_f2 and d2 > 0.0):
             continue
-        d = math.sqrt(d2)
-        rij = rad[i] + rad[j]
-        sij = rs[i] + rs[j]
-        if lam < 1.0:
-            fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], rij, 0.0,
-                                invB, k, kappa, sij)
-            fs = A * math.exp((sij - d) * invB) / d
-            ci = -(dx * e[i, 0] + dy * e[i, 1]) / d
-            cj = (dx * e[j, 0] + dy * e[j, 1]) / d
-            wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
-            wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
-            F[i, 0] += (fx + wi * fs * dx) * inv_m
-            F[i, 1] += (fy + wi * fs * dy) * inv_m
-            F[j, 0] -= (fx + wj * fs * dx) * inv_m
-            F[j, 1] -= (fy + wj * fs * dy) * inv_m
-        else:
-            fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1], rij, A,
-                                invB, k, kappa, sij)
-            F[i, 0] += fx * inv_m
-            F[i, 1] += fy * inv_m
-            F[j, 0] -= fx * inv_m
-            F[j, 1] -= fy * inv_m
+        aix, aiy, ajx, ajy = pair_terms(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0],
+                                        v[j, 1] - v[i, 1], rad[i] + rad[j], rs[i] + rs[j],
+                                        A, invB, k, kappa, inv_m, lam, e[i, 0], e[i, 1],
+                                        e[j, 0], e[j, 1])
+        F[i, 0] += aix
+        F[i, 1] += aiy
+        F[j, 0] -= ajx
+        F[j, 1] -= ajy
 
 
 def empty_pairs() -> tuple[np.ndarray, np.ndarray, np.ndarray]:

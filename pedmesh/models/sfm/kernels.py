@@ -35,7 +35,7 @@ ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 from ...eikonal.direction import _inside_packed, _interpolate  # noqa: E402
 from ...speed import shape  # noqa: E402
 from .crowding import crowd_factor_at  # noqa: E402
-from .forces import pair_force  # noqa: E402
+from .forces import pair_force, pair_terms  # noqa: E402
 from .hinge_kernels import hinge_accel, hinge_density  # noqa: E402
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
@@ -432,36 +432,16 @@ def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f
                 if own_j:
                     rp[aj] += w
             if d2 < rc_f2 and d2 > 0.0:
-                rij = rad[i] + rad[j]
-                sij = rs[i] + rs[j]
-                if lam < 1.0:  # the social repulsion weighted by each one's field of vision
-                    d = math.sqrt(d2)
-                    fx, fy = pair_force(dx, dy, d, v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
-                                        rij, 0.0, invB, k, kappa, sij)
-                    fs = A * math.exp((sij - d) * invB) / d
-                    # cos of the angle between one's direction and the other: -n_ij e_i,
-                    # n_ij e_j
-                    ci = -(dx * e[i, 0] + dy * e[i, 1]) / d
-                    cj = (dx * e[j, 0] + dy * e[j, 1]) / d
-                    wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)
-                    wj = lam + (1.0 - lam) * 0.5 * (1.0 + cj)
-                    if own_i:
-                        Fp[ai, 0] += (fx + wi * fs * dx) * inv_m
-                        Fp[ai, 1] += (fy + wi * fs * dy) * inv_m
-                    if own_j:
-                        Fp[aj, 0] -= (fx + wj * fs * dx) * inv_m
-                        Fp[aj, 1] -= (fy + wj * fs * dy) * inv_m
-                    continue
-                fx, fy = pair_force(dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0],
-                                    v[j, 1] - v[i, 1], rij, A, invB, k, kappa, sij)
-                fx *= inv_m
-                fy *= inv_m
+                aix, aiy, ajx, ajy = pair_terms(
+                    dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
+                    rad[i] + rad[j], rs[i] + rs[j], A, invB, k, kappa, inv_m, lam, e[i, 0],
+                    e[i, 1], e[j, 0], e[j, 1])
                 if own_i:
-                    Fp[ai, 0] += fx
-                    Fp[ai, 1] += fy
+                    Fp[ai, 0] += aix
+                    Fp[ai, 1] += aiy
                 if own_j:
-                    Fp[aj, 0] -= fx
-                    Fp[aj, 1] -= fy
+                    Fp[aj, 0] -= ajx
+                    Fp[aj, 1] -= ajy
         if not with_density:
             continue
         # the far group from the back: this block's own pairs, then its halo's
