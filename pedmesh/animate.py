@@ -44,7 +44,9 @@ class _Frames:
         self.pedestrians = dict(read_pvd_index(peds)) if peds.is_file() else {}
         self.layout = None  # a building's atlas (its floors side by side), else the plan
         self.note = ""
-        pts, tri, _, _ = read_vtu(self.density[0][1])
+        first = read_vtu(self.density[0][1])
+        self._read = {0: first}  # (the first frame, read once: field(0) takes it)
+        pts, tri, _, _ = first
         if np.ptp(np.asarray(pts)[:, 2]) > 0:  # a building with floors above each other
             from .run.layout import building_layout
 
@@ -54,7 +56,8 @@ class _Frames:
         """(points (n, 2), triangles (m, 3), cell density (m,) [ped/m^2]) of frame k."""
         from .io.vtk import read_vtu
 
-        pts, tri, pd, cd = read_vtu(self.density[k][1])
+        got = self._read.pop(k, None)
+        pts, tri, pd, cd = got if got is not None else read_vtu(self.density[k][1])
         if "rho" in cd:
             rho = np.asarray(cd["rho"], float)
         else:  # the social force model's kernel density at the vertices

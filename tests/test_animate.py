@@ -43,6 +43,21 @@ def test_a_gif_of_a_continuum_run(runs):
     assert im.n_frames == 5
 
 
+def test_each_frame_is_read_once(runs, monkeypatch):
+    """The first density frame (read at start-up to tell a building from a room) is not
+    read again for the first picture."""
+    from pedmesh import animate
+    from pedmesh.io import vtk
+
+    reads = []
+    real = vtk.read_vtu
+    monkeypatch.setattr(vtk, "read_vtu", lambda path: reads.append(path) or real(path))
+    frames = animate._Frames(runs / "rdue")
+    for k in range(3):
+        frames.field(k)
+    assert len(reads) == 3 and len(set(reads)) == 3
+
+
 def test_animate_errors_are_one_line(runs, tmp_path, capsys):
     for args, message in (([str(runs / "sfm"), "-o", str(tmp_path / "a.avi")], "use one of"),
                           ([str(tmp_path / "none"), "-o", str(tmp_path / "a.gif")],
