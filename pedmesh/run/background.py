@@ -34,8 +34,8 @@ __all__ = ["BackgroundWriter", "MAX_PENDING", "use_background"]
 MAX_PENDING = 64
 
 #: the RunWriter methods that only write (and return nothing): these go to the thread
-WRITES = frozenset({"call", "sample", "outflow", "append_rows", "density_frame", "pedestrian_frame",
-                    "trajectory_frame"})
+WRITES = frozenset({"call", "sample", "outflow", "append_rows", "density_frame",
+                    "pedestrian_frame", "trajectory_frame"})
 
 _STOP = object()
 
@@ -128,14 +128,15 @@ class BackgroundWriter:
 
     def close(self) -> None:
         """Drain and stop the writer thread (idempotent)."""
-        if self._thread.is_alive():
-            while True:
-                try:
+        sent = False
+        while self._thread.is_alive():
+            try:
+                if not sent:  # (once: after it the thread takes nothing more)
                     self._queue.put(_STOP)
-                    self._thread.join()
-                    break
-                except KeyboardInterrupt:
-                    continue
+                    sent = True
+                self._thread.join()
+            except KeyboardInterrupt:  # what is queued is written all the same
+                continue
 
     def finish(self, **summary: Any) -> dict[str, Any]:
         """Write what is queued, then close the files and write the summary (the writer's

@@ -143,3 +143,26 @@ def test_a_continuum_run_writes_the_same_files_in_the_background(geometries_dir,
     assert {"evacuation.csv", "outflow.csv", "density.pvd"} <= set(files[1])
     assert len([f for f in files[1] if f.endswith(".vtu")]) > 3
     assert files[1] == files[2]
+
+
+def test_close_twice_and_a_ctrl_c_while_it_waits(monkeypatch):
+    """A Ctrl-C while close waits for the writer thread: it goes on waiting, and every
+    call is written; a second close does nothing."""
+    rec = Recorder(delay=0.003)
+    w = BackgroundWriter(rec)
+    for k in range(20):
+        w.sample(float(k), k)
+    joins = []
+    real_join = w._thread.join
+
+    def join(*args):
+        joins.append(1)
+        if len(joins) == 1:
+            raise KeyboardInterrupt
+        return real_join(*args)
+
+    monkeypatch.setattr(w._thread, "join", join)
+    w.close()
+    assert len(joins) == 2 and len(rec.calls) == 20 and not w._thread.is_alive()
+    w.close()
+    assert w.finish(status="finished") == {"status": "finished"}
