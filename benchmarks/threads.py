@@ -6,10 +6,10 @@ the whole step, is timed on every thread count asked for, the counts alternating
 median and best time per call on each thread count, and the speed-up against one thread
 (median over median, best over best).
 
-* Every run first times a reference with nothing serial and nothing shared (independent
-  sums of exponentials): what it gains on more threads is the most this machine gives (a
-  virtual machine's two cores scaled it to only 0.57-0.68 here), and the model kernels'
-  ratios are to be read against it.
+* Every run also times a reference with nothing serial and nothing shared (independent
+  sums of exponentials, after the model's kernels): what it gains on more threads is the
+  most this machine gives at that moment (a virtual machine's two cores gave 0.50-0.77
+  within one hour here), and the model kernels' ratios are to be read against it.
 * ``--model eos`` (or another continuum model; default room: the 100,000-person venue,
   65,000 cells): the kernels of ``FVSolver.residual`` and of the implicit correction (the
   reconstruction, the high- and first-order fluxes, the flux limiter with the divergence,
@@ -414,8 +414,8 @@ _PARTS = ("steps", "trajectories", "vtk frames", "pedestrians.pvd", "density.pvd
           "kernel outflow", "exits.csv etc.", "safety", "process")
 #: the parts written by the background writer (pedmesh.run.background) on a run with more
 #: than one thread: on its own thread, beside the steps (not in the stepping thread's time)
-_WRITER_PARTS = ("trajectory files (writer)", "pedestrians.pvd (writer)", "density.pvd (writer)",
-                 "kernel outflow (writer)")
+_WRITER_PARTS = ("trajectory files (writer)", "pedestrians.pvd (writer)",
+                 "density.pvd (writer)", "kernel outflow (writer)")
 #: summary.json's fields that differ between two runs of the same thing
 _VOLATILE = {"wall_time_s", "time_split_s", "pid"}
 

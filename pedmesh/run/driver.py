@@ -17,7 +17,6 @@ from ..parameters import DEFAULT_T_END_S
 from .._signals import request_stop, stop_on_signals, stop_requested
 from ..errors import ParameterError, PedmeshError, SimulationError
 from ..models import CONTINUUM, DenseFrames, ModelEntry, get_model
-from . import background
 from .background import BackgroundWriter, use_background
 from .output import RunWriter, _clean, file_sha256
 from ..models.protocol import RunModel

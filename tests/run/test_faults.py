@@ -235,11 +235,11 @@ def test_full_disk_on_the_background_writer(geometries_dir, tmp_path, monkeypatc
                                             model, where, named):
     """On two threads the output is written on a thread of its own
     (pedmesh.run.background): its failed write ends the run the same way."""
-    from pedmesh.run import driver
+    from pedmesh.run import background, driver
 
     made = []
 
-    class Counted(driver.background.BackgroundWriter):
+    class Counted(background.BackgroundWriter):
         def __init__(self, writer):
             made.append(1)
             super().__init__(writer)
