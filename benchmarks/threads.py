@@ -231,17 +231,36 @@ def serial_profile(run, steps: int) -> dict:
 
     import numba
 
+    # a run's step sets numba's thread count to its solver's own (FVController.advance):
+    # that is set to one here, or the "one-thread" profile would run on the run's threads
+    solver = run.solver
+    threads_before = solver.threads
+    solver.threads = 1
     numba.set_num_threads(1)
-    for _ in range(2):  # (compiled and warm)
-        run.step()
-    prof = cProfile.Profile()
-    a = time.perf_counter()
-    prof.enable()
-    for _ in range(steps):
-        run.step()
-    prof.disable()
-    wall = time.perf_counter() - a
-    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    seen = set()  # the thread counts the solver's steps ran on
+    plain_step = solver.step
+
+    def step(*a, **kw):
+        seen.add(numba.get_num_threads())
+        return plain_step(*a, **kw)
+
+    solver.step = step
+    try:
+        for _ in range(2):  # (compiled and warm)
+            run.step()
+        prof = cProfile.Profile()
+        a = time.perf_counter()
+        prof.enable()
+        for _ in range(steps):
+            run.step()
+        prof.disable()
+        wall = time.perf_counter() - a
+    finally:
+        del solver.step
+        solver.threads = threads_before
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    if seen != {1}:
+        raise RuntimeError(f"the one-thread profile ran on {sorted(seen)} threads")
     stats = pstats.Stats(prof).stats
     rows = []
     for (fname, _line, func), (_cc, _nc, tt, _ct, _callers) in stats.items():
@@ -264,7 +283,7 @@ def serial_profile(run, steps: int) -> dict:
     for r in rows[:25]:
         tag = "parallel" if r["parallel"] else "serial  "
         print(f"  {tag} {100 * r['seconds'] / total:5.1f} %  {r['function']}")
-    return {"steps": steps, "wall_s": wall, "profiled_s": total, "serial_s": serial,
+    return {"steps": steps, "threads": 1, "wall_s": wall, "profiled_s": total, "serial_s": serial,
             "serial_share": serial / total, "functions": rows[:40]}
 
 

@@ -108,3 +108,19 @@ def test_the_active_set_grows_by_rings_of_face_neighbours():
         n = _threads(t, K.active_set, Q, nbr, e2t, 1e-6, 2, cact, live)
         assert n == ref.sum() and np.array_equal(cact, ref)
         assert np.array_equal(live, ref[e2t[:, 0]] & ((e2t[:, 1] < 0) | ref[e2t[:, 1]]))
+
+
+def test_short_edge_loops_reach_every_chunk():
+    """The wall and exit edge loops (a room's hundred exit edges, a few thousand walls) are
+    cut into blocks of at most 1/NCHUNK of the edges (rounded up), so that the chunks of
+    the parallel loop share them, and the blocks cover every edge once (with BLOCK-sized
+    blocks, 103 exit edges were one block, all on one thread)."""
+    from pedmesh.models.continuum.fv_kernels import BLOCK, NCHUNK, short_block
+
+    for n in (1, 5, 16, 17, 103, 3080, 8192, 100_000):
+        bs = short_block(n)
+        assert 1 <= bs <= BLOCK
+        blocks = -(-n // bs)
+        assert blocks * bs >= n > (blocks - 1) * bs
+        assert bs <= -(-n // NCHUNK) or bs == BLOCK
+        assert blocks >= min(n, NCHUNK // 2)

@@ -30,7 +30,7 @@ import numba as nb
 import numpy as np
 
 from ...errors import ParameterError
-from .fv_kernels import BLOCK, FAST, NCHUNK, PAR
+from .fv_kernels import BLOCK, FAST, NCHUNK, PAR, short_block
 from .base import MacroModel
 from ...speed import SpeedLaw, shape
 from ... import parameters as P
@@ -372,9 +372,10 @@ def vacuum_godunov(q, nx, ny, kind, prm, rho_cut, umax, h_rho, h_val, F):
     outwards, vacuum if the whole fan moves inwards, else the sonic state where u = c(rho),
     found through the Riemann invariant u + h(rho) = u_L + h(rho_L)."""
     n_k = q.shape[0]
+    bs = short_block(n_k)
     for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
-        for b_ in range(c_, ((n_k) + BLOCK - 1) // BLOCK, NCHUNK):
-            for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
+        for b_ in range(c_, (n_k + bs - 1) // bs, NCHUNK):
+            for k in range(b_ * bs, min(n_k, (b_ + 1) * bs)):
                 F[k, 0], F[k, 1], F[k, 2] = _godunov_point(q[k], nx[k], ny[k], kind, prm,
                                                            rho_cut, umax, h_rho, h_val)
 
@@ -396,11 +397,12 @@ def boundary_edges(q, nx, ny, g, wall, kind, prm, xkind, xprm, rho_cut, umax, h_
     may contract other products into fused multiply-adds). The edges in parallel (each
     writes only its own rows)."""
     k_e = edges.shape[0]
+    bs = short_block(k_e)
     for c_ in nb.prange(NCHUNK):
         s = np.empty(3)
         f = np.empty((2, 3))
-        for b_ in range(c_, (k_e + BLOCK - 1) // BLOCK, NCHUNK):
-            for a_ in range(b_ * BLOCK, min(k_e, (b_ + 1) * BLOCK)):
+        for b_ in range(c_, (k_e + bs - 1) // bs, NCHUNK):
+            for a_ in range(b_ * bs, min(k_e, (b_ + 1) * bs)):
                 e = edges[a_]
                 if not live[e]:
                     F[e, 0] = F[e, 1] = F[e, 2] = 0.0

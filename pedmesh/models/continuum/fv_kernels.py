@@ -30,6 +30,15 @@ BLOCK = 512
 
 
 @nb.njit(**FAST, inline="always")
+def short_block(n):
+    """The block size for a loop of ``n`` costly items (the wall and exit edges, ~100 to a
+    few thousand): at most :data:`BLOCK`, small enough that every chunk gets a block (with
+    :data:`BLOCK` a room's hundred exit edges were one block, all on one thread). Only for
+    loops whose items each write their own output (no sum over blocks)."""
+    return max(1, min(BLOCK, (n + NCHUNK - 1) // NCHUNK))
+
+
+@nb.njit(**FAST, inline="always")
 def zhang_shu_theta(r, mn, rho_eps):
     """Zhang-Shu factor in [0, 1] that scales a cell's point densities about its average
     ``r`` so that the smallest, ``mn``, becomes ``rho_eps`` (0 if the average is not above

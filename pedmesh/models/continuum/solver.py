@@ -339,7 +339,8 @@ class FVSolver:
             fe = np.minimum(factors[self.e2t[:, 0]],
                             np.where(self.e2t[:, 1] >= 0, factors[np.maximum(self.e2t[:, 1], 0)],
                                      np.inf))
-            self.e_edge = self.e_edge * fe[:, None, None]
+            if self.model.direction_dependent_flux:  # (else e_edge is never re-sampled)
+                self.e_edge = self.e_edge * fe[:, None, None]
             self.e_int = self.e_int * factors[:, None, None]
             self.e_cell = self.e_cell * factors[:, None]
         self._sample_directions()
@@ -422,7 +423,12 @@ class FVSolver:
         return slot
 
     def _sample_directions(self) -> None:
+        """The route directions as the kernels read them: at the edges' Gauss points per
+        edge category (``ex``, ``ey``, ``ex1``, ``ey1``; sampled once for a model whose flux
+        does not read them) and at the cells' interior points."""
         for c in getattr(self, "_cat", {}).values():
+            if "ex" in c and not self.model.direction_dependent_flux:
+                continue  # (e_edge is not re-sampled either: no flux reads it)
             c["ex"] = np.ascontiguousarray(self.e_edge[c["idx"], :, 0].ravel())
             c["ey"] = np.ascontiguousarray(self.e_edge[c["idx"], :, 1].ravel())
             c["ex1"] = np.ascontiguousarray(self.e_edge[c["idx"], 0, 0])
