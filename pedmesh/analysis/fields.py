@@ -20,10 +20,23 @@ def _pairs(positions, points, cutoff):
     point and then by pedestrian (the lists of a query of several points are sorted)."""
     from scipy.spatial import cKDTree
 
-    lists = cKDTree(positions).query_ball_point(points, cutoff)
+    # only the pedestrians within the cut-off of the points' bounding box go into the tree
+    # (an exit's few points: a handful of the crowd); their indices keep their order, so
+    # the lists are those of a tree of everyone
+    points = np.asarray(points, float).reshape(-1, 2)
+    if len(points) == 0 or len(positions) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    pad = cutoff * (1.0 + 1e-9) + 1e-12  # (a margin for the rounding of the box)
+    lo = points.min(axis=0) - pad
+    hi = points.max(axis=0) + pad
+    near = np.flatnonzero((positions[:, 0] >= lo[0]) & (positions[:, 0] <= hi[0])
+                          & (positions[:, 1] >= lo[1]) & (positions[:, 1] <= hi[1]))
+    if len(near) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    lists = cKDTree(positions[near]).query_ball_point(points, cutoff)
     counts = np.fromiter(map(len, lists), np.int64, len(lists))
     col = np.repeat(np.arange(len(points)), counts)
-    row = np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(counts.sum()))
+    row = near[np.fromiter(itertools.chain.from_iterable(lists), np.int64, int(counts.sum()))]
     d = np.hypot(*(positions[row] - points[col]).T) if len(row) else np.zeros(0)
     return row, col, d
 

@@ -74,6 +74,28 @@ def test_uniform_stream_outflow_particles(door_mesh):
     np.testing.assert_allclose(r, 8.0)
 
 
+@pytest.mark.parametrize("spread", [0.3, 3.0, 30.0])
+def test_kernel_pairs_are_those_of_the_whole_crowd(spread):
+    """The kernel fields' neighbour pairs (only the pedestrians near the query points go
+    into the search tree) are exactly those of a tree of the whole crowd, in its order:
+    by point, then by pedestrian."""
+    from scipy.spatial import cKDTree
+
+    from pedmesh.analysis.fields import _pairs
+
+    rng = np.random.default_rng(7)
+    pos = rng.random((3000, 2)) * 40.0
+    for pts in (np.array([[20.0, 20.0]]), 20.0 + spread * rng.random((12, 2)),
+                np.array([[-50.0, -50.0]])):
+        row, col, d = _pairs(pos, pts, 1.8)
+        lists = cKDTree(pos).query_ball_point(pts, 1.8)
+        want_col = np.concatenate([np.full(len(li), k) for k, li in enumerate(lists)])
+        want_row = np.concatenate([np.asarray(li, np.int64) for li in lists])
+        np.testing.assert_array_equal(row, want_row)
+        np.testing.assert_array_equal(col, want_col)
+        np.testing.assert_array_equal(d, np.hypot(*(pos[want_row] - pts[want_col]).T))
+
+
 def test_binning_puts_points_in_the_right_bins():
     d = np.array([0.01, 0.04, 0.05, 10.48, 11.0, -0.1])
     f = np.array([1.0, 2.0, 4.0, 5.0, 9.0, 9.0])
