@@ -216,3 +216,31 @@ def test_interrupted_run_keeps_output(load_shipped, tmp_path, monkeypatch):
     from pedmesh.io import read_pvd_index
 
     assert len(read_pvd_index(tmp_path / "pedestrians.pvd")) == 7  # t = 0, 1, ..., 6
+
+
+@pytest.mark.parametrize("leave", ["none", "first", "last", "some", "all"])
+def test_leavers_are_dropped_as_fancy_indexing_would(leave):
+    """kernels.compact removes those who left from every per-pedestrian array in one pass,
+    the others moved up in their order: what ``arr[:m] = arr[keep]`` gives, array by
+    array, and the rows beyond the first n untouched."""
+    from pedmesh.models.sfm import kernels as K
+
+    rng = np.random.default_rng(3)
+    N, n = 50, 40
+    exit_of = np.full(N, -1, np.int64)
+    gone = {"none": [], "first": [0], "last": [n - 1], "some": [0, 3, 4, 17, 39],
+            "all": list(range(n))}[leave]
+    exit_of[gone] = 1
+    arrays = [rng.random((N, 2)), rng.random((N, 2)), rng.random(N), rng.random(N),
+              rng.random(N), rng.random(N), rng.integers(0, 9, N), rng.random((N, 2)),
+              rng.permutation(N).astype(np.int64), rng.integers(0, 99, N), rng.random(N)]
+    keep = np.flatnonzero(exit_of[:n] < 0)
+    want = []
+    for a in arrays:
+        b = a.copy()
+        b[:len(keep)] = a[keep]
+        want.append(b)
+    m = K.compact(exit_of, n, *arrays)
+    assert m == len(keep)
+    for a, b in zip(arrays, want):
+        np.testing.assert_array_equal(a, b)

@@ -960,6 +960,36 @@ def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, 
 
 
 @nb.njit(cache=True)
+def compact(exit_of, n, x, v, rad, u0, u_eff, tpre, toff, e, ids, tri, rho):
+    """Drop the pedestrians who left (``exit_of[i] >= 0``) from the first ``n`` rows of the
+    per-pedestrian arrays, the others moved up in their order (what ``arr[:m] =
+    arr[keep]`` does for each array, in one pass from the first leaver); returns their
+    number ``m``."""
+    w = 0
+    while w < n and exit_of[w] < 0:
+        w += 1
+    for i in range(w, n):
+        if exit_of[i] >= 0:
+            continue
+        x[w, 0] = x[i, 0]
+        x[w, 1] = x[i, 1]
+        v[w, 0] = v[i, 0]
+        v[w, 1] = v[i, 1]
+        e[w, 0] = e[i, 0]
+        e[w, 1] = e[i, 1]
+        rad[w] = rad[i]
+        u0[w] = u0[i]
+        u_eff[w] = u_eff[i]
+        tpre[w] = tpre[i]
+        toff[w] = toff[i]
+        ids[w] = ids[i]
+        tri[w] = tri[i]
+        rho[w] = rho[i]
+        w += 1
+    return w
+
+
+@nb.njit(cache=True)
 def first_bad(x, v, n, vmax2):
     """Index of the first pedestrian with a non-finite state or a speed^2 above ``vmax2``
     (-1 if none)."""

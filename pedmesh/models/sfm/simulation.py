@@ -624,15 +624,9 @@ class Simulation:
             self.exit_time[ids] = self.t + self._exit_frac[:n][gone] * dt
             self.exit_id[ids] = self._exit_of[:n][gone]
             self.exit_point[ids] = self.x[:n][gone]
-            keep = np.flatnonzero(~gone)
-            m = len(keep)
-            for arr in (self.x, self.v, self.rad, self.u0, self._u_eff, self.tpre, self.toff,
-                        self._e):
-                arr[:m] = arr[keep]
-            self.ids[:m] = self.ids[keep]
-            self.tri[:m] = self.tri[keep]
-            self.rho[:m] = self.rho[keep]
-            self.n = m
+            self.n = K.compact(self._exit_of, n, self.x, self.v, self.rad, self.u0,
+                               self._u_eff, self.tpre, self.toff, self._e, self.ids, self.tri,
+                               self.rho)
         self.steps += 1
         self.t = self.steps * dt  # no drift from summing dt
         self.timers.forces += t1 - t0
