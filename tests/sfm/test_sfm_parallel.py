@@ -105,7 +105,8 @@ def _work(start, nx, ny):
 def test_blocks_share_the_work():
     """A crowd packed in one corner and sparse elsewhere: cut by head count, the block
     holding the packed cells would get most of the distances to test; the blocks are cut by
-    those distances instead, so each gets its share up to one cell's work."""
+    those distances instead (where the running sum of the cells' work reaches each block's
+    share), so each gets its share up to one cell's work."""
     rng = np.random.default_rng(5)
     n = 1500
     x = np.concatenate([rng.uniform([0.1, 0.1], [4.0, 4.0], (1000, 2)),
@@ -115,10 +116,15 @@ def test_blocks_share_the_work():
     start, order = np.zeros(nx * ny + 1, np.int64), np.zeros(n, np.int64)
     K.build_cells(x, n, 0.0, 0.0, 1.0 / cell, nx, ny, start, order)
     work = _work(start, nx, ny)
-    for nblocks in (2, 3, 4):
-        lay, _ = K.pair_blocks(n, start, order, nx, ny, nblocks)
+    before = np.concatenate([[0], np.cumsum(work)])  # the work before each cell
+    for nblocks in (2, 3, 4, 7):
+        lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
         cuts = lay[:, 0]
         assert cuts[0] == 0 and cuts[-1] == nx * ny and np.all(np.diff(cuts) >= 0)
+        # block b starts at the first cell with at least b / nblocks of the work before it
+        for b in range(1, nblocks):
+            assert cuts[b] == np.argmax(before * nblocks >= b * work.sum()), (nblocks, b)
+        np.testing.assert_array_equal(pos[order], np.arange(n))  # each one's place
         share = np.array([work[cuts[b]:cuts[b + 1]].sum() for b in range(nblocks)])
         assert share.max() <= work.sum() / nblocks + work.max(), (nblocks, share)
         # cut by head count, one block would have had far more than its share

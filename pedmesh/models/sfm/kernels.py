@@ -98,15 +98,14 @@ def _stencil_cell(ci, cj, q, nx, ny):
 
 
 @nb.njit(cache=True, inline="always")
-def _cell_work(c, cell_start, nx, ny):
-    """The distances the pair search tests for the pedestrians of cell ``c``: each with
-    the later ones of its own cell and with everyone in the four other cells of its half
-    stencil (plus one per pedestrian, for an empty stencil)."""
+def _cell_work(ci, cj, cell_start, nx, ny):
+    """The distances the pair search tests for the pedestrians of cell (``ci``, ``cj``):
+    each with the later ones of its own cell and with everyone in the four other cells of
+    its half stencil (plus one per pedestrian, for an empty stencil)."""
+    c = ci * ny + cj
     m = cell_start[c + 1] - cell_start[c]
     if m == 0:
         return 0
-    ci = c // ny
-    cj = c % ny
     near = 0
     for q in range(1, 5):
         c2 = _stencil_cell(ci, cj, q, nx, ny)
@@ -115,7 +114,7 @@ def _cell_work(c, cell_start, nx, ny):
     return m * (m - 1) // 2 + m * near + m
 
 
-@nb.njit(cache=True)
+@nb.njit(parallel=True, cache=True)
 def pair_blocks(n, cell_start, cell_order, nx, ny, nblocks):
     """Cut the cells into ``nblocks`` runs of consecutive cells with about equal work:
     ``lay`` (nblocks + 1, 5) int64 with block b's first cell in ``lay[b, 0]``
@@ -132,23 +131,40 @@ def pair_blocks(n, cell_start, cell_order, nx, ny, nblocks):
     nc = nx * ny
     lay = np.zeros((nblocks + 1, 5), np.int64)
     if nblocks > 1:
+        # each cell's work and each row's sum on the threads; block b then starts at the
+        # first cell with the work before it >= b / nblocks of the total, found by going
+        # through the rows' sums and only the cells of the rows where a cut falls
+        work = np.empty(nc, np.int64)
+        row = np.empty(nx, np.int64)
+        for ri in nb.prange(nx):
+            ci = np.int64(ri)
+            s = 0
+            for cj in range(ny):
+                w = _cell_work(ci, cj, cell_start, nx, ny)
+                work[ci * ny + cj] = w
+                s += w
+            row[ci] = s
         total = 0
-        for c in range(nc):
-            total += _cell_work(c, cell_start, nx, ny)
+        for ci in range(nx):
+            total += row[ci]
         b = 1
         done = 0
-        for c in range(nc):
-            while b < nblocks and done * nblocks >= b * total:
-                lay[b, 0] = c
-                b += 1
-            done += _cell_work(c, cell_start, nx, ny)
+        for ci in range(nx):
+            if b < nblocks and (done + row[ci]) * nblocks >= b * total:
+                for c in range(ci * ny, (ci + 1) * ny):
+                    while b < nblocks and done * nblocks >= b * total:
+                        lay[b, 0] = c
+                        b += 1
+                    done += work[c]
+            else:
+                done += row[ci]
         while b < nblocks:
             lay[b, 0] = nc
             b += 1
     lay[nblocks, 0] = nc
     pos = np.empty(n if nblocks > 1 else 0, np.int64)  # (one block sums by row)
     if nblocks > 1:
-        for a in range(n):
+        for a in nb.prange(n):
             pos[cell_order[a]] = a
     return lay, pos
 
