@@ -30,6 +30,16 @@ BLOCK = 512
 
 
 @nb.njit(**FAST, inline="always")
+def sum_in_order(part, nc):
+    """The sum of the chunks' partial sums ``part[:nc]``, added in order (a parallel
+    loop's sum that is the same on any number of threads)."""
+    out = 0.0
+    for c in range(nc):
+        out += part[c]
+    return out
+
+
+@nb.njit(**FAST, inline="always")
 def short_block(n):
     """The block size for a loop of ``n`` costly items (the wall and exit edges, ~100 to a
     few thousand): at most :data:`BLOCK`, small enough that every chunk gets a block (with
@@ -494,10 +504,7 @@ def fingerprint(Q):
                 for v in range(nv):
                     acc += Q[i, v]
         part[c_] = acc
-    out = 0.0
-    for c_ in range(NCHUNK):
-        out += part[c_]
-    return out
+    return sum_in_order(part, NCHUNK)
 
 
 @nb.njit(**EXACT_PAR)

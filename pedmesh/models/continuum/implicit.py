@@ -44,7 +44,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .fv_kernels import BLOCK, FAST, NCHUNK, PAR, cell_edges
+from .fv_kernels import BLOCK, FAST, NCHUNK, PAR, cell_edges, sum_in_order
 from .barotropic import ISOTHERMAL, _p_c, _prim
 
 __all__ = ["ImplicitPressure"]
@@ -473,15 +473,6 @@ def _system(a, G, imp, V, areas, cf, cs, nbr):
 CG_CHUNK = 1024
 
 
-@nb.njit(cache=True, inline="always")
-def _in_order(part, nc):
-    """The sum of the chunks' partial sums ``part[:nc]``, added in order."""
-    out = 0.0
-    for c in range(nc):
-        out += part[c]
-    return out
-
-
 @nb.njit(cache=True, parallel=True)
 def _cg_dot(x, y, part):
     """``x . y`` over the chunks."""
@@ -492,7 +483,7 @@ def _cg_dot(x, y, part):
         for i in range(c * CG_CHUNK, min(n, (c + 1) * CG_CHUNK)):
             acc += x[i] * y[i]
         part[c] = acc
-    return _in_order(part, nc)
+    return sum_in_order(part, nc)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -509,7 +500,7 @@ def _cg_matvec_dot(indptr, indices, data, p, q, part):
             q[r] = s
             acc += p[r] * s
         part[c] = acc
-    return _in_order(part, nc)
+    return sum_in_order(part, nc)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -525,7 +516,7 @@ def _cg_update(alpha, p, q, x, r, part):
             r[i] = ri
             acc += ri * ri
         part[c] = acc
-    return _in_order(part, nc)
+    return sum_in_order(part, nc)
 
 
 @nb.njit(cache=True, parallel=True)
