@@ -30,6 +30,23 @@ def load_shipped():
     return _load
 
 
+@pytest.fixture
+def background_writers(monkeypatch) -> list:
+    """A list that gets one entry for each background writer a run makes
+    (:class:`pedmesh.run.background.BackgroundWriter`, as the run driver creates it)."""
+    from pedmesh.run import background, driver
+
+    made: list = []
+
+    class Counted(background.BackgroundWriter):
+        def __init__(self, writer):
+            made.append(1)
+            super().__init__(writer)
+
+    monkeypatch.setattr(driver, "BackgroundWriter", Counted)
+    return made
+
+
 @pytest.fixture(scope="session")
 def mirrored_mesh():
     """Example 2's room as an exactly mirror-symmetric mesh (the upper half meshed, then

@@ -232,19 +232,10 @@ def test_full_disk_fails_naming_the_file(geometries_dir, tmp_path, monkeypatch, 
     ("sfm", "trajectories.sqlite", "trajectories.sqlite"),
 ])
 def test_full_disk_on_the_background_writer(geometries_dir, tmp_path, monkeypatch, capsys,
-                                            model, where, named):
+                                            background_writers, model, where, named):
     """On two threads the output is written on a thread of its own
     (pedmesh.run.background): its failed write ends the run the same way."""
-    from pedmesh.run import background, driver
-
-    made = []
-
-    class Counted(background.BackgroundWriter):
-        def __init__(self, writer):
-            made.append(1)
-            super().__init__(writer)
-
-    monkeypatch.setattr(driver, "BackgroundWriter", Counted)
+    made = background_writers
     disk = FullDisk(monkeypatch)
     _inject(monkeypatch, disk, where)
     out = tmp_path / "full"

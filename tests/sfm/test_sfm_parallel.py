@@ -219,19 +219,10 @@ def test_steps_are_the_serial_ones(tmp_path, monkeypatch):
 
 
 @two_threads
-def test_run_files_are_the_same_on_one_and_two_threads(tmp_path, monkeypatch):
+def test_run_files_are_the_same_on_one_and_two_threads(tmp_path, background_writers):
     """Every file of the run but the summary (its wall times), byte for byte; on 2 threads
     the output is written by the background writer (pedmesh.run.background)."""
-    from pedmesh.run import background, driver
-
-    made = []
-
-    class Counted(background.BackgroundWriter):
-        def __init__(self, writer):
-            made.append(1)
-            super().__init__(writer)
-
-    monkeypatch.setattr(driver, "BackgroundWriter", Counted)
+    made = background_writers
     room = _room(tmp_path)
     files = {}
     for threads in (1, 2):
