@@ -39,6 +39,7 @@ def render() -> str:
         ("The paper's Table 1", P.TABLE1),
         ("The desired-speed law", P.SPEED_LAW),
         ("The social force model's dense-crowd terms", P.SFM_TERMS),
+        ("Routes", P.ROUTES),
         ("The social force model's numerics", P.SFM_NUMERICS),
         ("Output", P.RUN_OUTPUT),
         ("The continuum models' physics", P.CONTINUUM),

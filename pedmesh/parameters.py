@@ -42,9 +42,9 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["Parameter", "PARAMETERS", "TABLE1", "TABLE1_SOURCE", "DEFAULT_T_END_S", "DEFAULTS",
-           "declare", "get", "field", "check_fields", "check_values", "parse_overrides",
-           "defaults"]
+__all__ = ["Parameter", "PARAMETERS", "TABLE1", "ROUTES", "TABLE1_SOURCE", "DEFAULT_T_END_S",
+           "DEFAULTS", "declare", "get", "field", "check_fields", "check_values",
+           "parse_overrides", "defaults"]
 
 #: where the paper's values come from
 TABLE1_SOURCE = "paper, Table 1"
@@ -348,6 +348,18 @@ SFM_TERMS: tuple[Parameter, ...] = declare(
               ADRIAN_SOURCE, range=(0.1, 100.0)),
 )
 
+#: the route choice: what the route potential reads of the crowd
+ROUTES: tuple[Parameter, ...] = declare(
+    _positive("route_kernel", None, "m", "width L of the Gaussian kernel exp(-d^2/L^2) / "
+              "(pi L^2) of the crowd density the route cost 1/U_e reads (None: the density "
+              "kernel R at the route mesh's vertices, the paper's eq3; a length: the crowd's "
+              "density on that scale, so that the route sees crowds, not the gaps between "
+              "people, and is the same on any mesh that resolves L; range: from a body's "
+              "reach to a hall)", "pedmesh (docs/validation/route_convergence.md): about "
+              "the size of the areas in which crowd densities are measured (the Juelich "
+              "corridors' 1.8 x 2 m)", optional=True, range=(0.5, 10.0)),
+)
+
 #: the social force model's numerics
 SFM_NUMERICS: tuple[Parameter, ...] = declare(
     _positive("dt", 0.01, "s", "time step of the SSP-RK3 integrator (range: a longer step "
@@ -356,6 +368,11 @@ SFM_NUMERICS: tuple[Parameter, ...] = declare(
     _non_negative("route_interval", 1.0, "s", "interval between re-solves of the route "
                   "potential (0: every step; the direction is held in between)",
                   range=(0.0, 1000.0)),
+    _positive("route_resolution", None, "m", "the social force model's routes, walls and "
+              "crossings on a mesh of their own with edges of this length at the exits and "
+              "the reflex corners (door jambs, pillars), growing by 0.2 m per metre to a "
+              "third of route_kernel (None: on the run's mesh, as the paper; the run's mesh "
+              "then only carries the output)", optional=True, range=(0.01, 2.0)),
     _positive("force_cutoff", 1.2, "m", "interaction cut-off: A exp((0.3 - 1.2)/0.08) = "
               "0.026 N, 2e-4 of the driving force m U_f / tau = 124 N", range=(0.1, 10.0)),
     _positive("density_cutoff", 3.0, "R", "density-kernel cut-off in units of R: "

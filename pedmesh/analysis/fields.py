@@ -9,7 +9,7 @@ import numpy as np
 
 from ..parameters import DEFAULTS as D
 
-__all__ = ["kernel_density", "kernel_velocity", "vertex_to_cell"]
+__all__ = ["kernel_density", "kernel_velocity", "vertex_to_cell", "GridKernelDensity"]
 
 #: kernel_density's cut-off in units of R
 _DENSITY_CUTOFF = 3.0
@@ -111,3 +111,76 @@ def vertex_to_cell(*, mesh, values: np.ndarray) -> np.ndarray:
     """Cell values as the mean of the three vertex values."""
     v = np.asarray(values)
     return v[mesh.triangles].mean(axis=1)
+
+
+#: :class:`GridKernelDensity`'s grid cell in units of the kernel width
+GRID_CELL_PER_KERNEL = 0.25
+#: ... and its largest number of grid nodes (the cell grows beyond that)
+GRID_MAX_NODES = 4_000_000
+
+
+class GridKernelDensity:
+    """The Gaussian kernel density ``sum_j exp(-|x_j - x|^2 / L^2) / (pi L^2)`` [ped/m^2]
+    of a crowd at fixed ``points`` [m], for kernels much wider than the people are apart
+    (the route's crowd density, ``route_kernel``), where summing over pairs would cost
+    hundreds of neighbours a point.
+
+    The crowd is binned onto a grid of cell ``h`` = L / 4 [m] (each person's unit mass
+    shared among the four nodes around them, bilinearly), smoothed by a Gaussian filter
+    (:func:`scipy.ndimage.gaussian_filter`, nothing beyond the grid), and read at the
+    points bilinearly. The two bilinear steps widen the kernel by a variance of ``h^2 / 6``
+    each per axis, so the filter's is ``L^2 / 2 - h^2 / 3``: the result has the kernel's
+    mass and variance, and its shape within a fraction of a per cent of the kernel's
+    (tested against :func:`kernel_density`). The grid covers the points; people outside it
+    are counted at its edge.
+    """
+
+    def __init__(self, points: np.ndarray, length: float) -> None:
+        pts = np.asarray(points, float).reshape(-1, 2)
+        if not (math.isfinite(length) and length > 0):
+            raise ValueError(f"kernel width must be a positive number of metres, got {length!r}")
+        if len(pts) == 0:
+            raise ValueError("no points to evaluate the density at")
+        self.length = float(length)
+        lo = pts.min(axis=0)
+        span = pts.max(axis=0) - lo
+        h = GRID_CELL_PER_KERNEL * self.length
+        h = max(h, math.sqrt(float((span[0] + 4 * h) * (span[1] + 4 * h)) / GRID_MAX_NODES))
+        self.cell = h
+        self.origin = lo - 2.0 * h
+        self.shape = (int(math.ceil(span[0] / h)) + 5, int(math.ceil(span[1] / h)) + 5)
+        self.sigma = math.sqrt(0.5 * self.length ** 2 - h * h / 3.0) / h  # [cells]
+        self._idx, self._w = self._bilinear(pts)
+        self.n_points = len(pts)
+
+    def _bilinear(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(4, p) flat node indices and weights of the bilinear stencil of each point."""
+        nx, ny = self.shape
+        f = (xy - self.origin) / self.cell
+        i = np.clip(np.floor(f[:, 0]).astype(np.int64), 0, nx - 2)
+        j = np.clip(np.floor(f[:, 1]).astype(np.int64), 0, ny - 2)
+        a = np.clip(f[:, 0] - i, 0.0, 1.0)
+        b = np.clip(f[:, 1] - j, 0.0, 1.0)
+        idx = np.stack([i * ny + j, (i + 1) * ny + j, i * ny + j + 1, (i + 1) * ny + j + 1])
+        w = np.stack([(1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b])
+        return idx, w
+
+    def grid(self, positions: np.ndarray) -> np.ndarray:
+        """The smoothed density [ped/m^2] at the grid's nodes (``shape``; node (i, j) at
+        ``origin + (i, j) cell``)."""
+        from scipy import ndimage
+
+        x = np.asarray(positions, float).reshape(-1, 2)
+        idx, w = self._bilinear(x)
+        nx, ny = self.shape
+        mass = np.bincount(idx.ravel(), weights=w.ravel(), minlength=nx * ny)
+        g = mass.reshape(nx, ny) / (self.cell * self.cell)
+        return ndimage.gaussian_filter(g, self.sigma, mode="constant", cval=0.0,
+                                       truncate=4.0)
+
+    def __call__(self, positions: np.ndarray) -> np.ndarray:
+        """(p,) the density [ped/m^2] at the points of a crowd at ``positions`` (N, 2) [m]."""
+        if len(positions) == 0:
+            return np.zeros(self.n_points)
+        g = self.grid(positions).ravel()
+        return np.einsum("kp,kp->p", g[self._idx], self._w)

@@ -10,6 +10,7 @@ further on one side, the points are added to both and the two pieces meshed agai
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -88,10 +89,14 @@ def _params_on(mesh: TriMesh, name: str, a: np.ndarray, b: np.ndarray) -> np.nda
 
 def triangulate_building(building, max_area: float = MAX_AREA, min_angle: float = MIN_ANGLE,
                          *, feature_area: float | None = FEATURE_AREA,
-                         max_cells: float | None = None) -> SurfaceMesh:
+                         max_cells: float | None = None,
+                         size_of: Callable | None = None) -> SurfaceMesh:
     """One surface mesh of ``building`` (a :class:`~pedmesh.geometry.Building`): every
     level and stair triangulated as :func:`~pedmesh.mesh.triangulate` does a room, with
-    the same options, then lifted to 3-D and stitched along the stair edges."""
+    the same options, then lifted to 3-D and stitched along the stair edges. ``size_of``:
+    a function of a piece's room (a level's, or a stair's in its own chart, its stair
+    edges as exits) giving that piece's custom size field (``size`` of
+    :func:`~pedmesh.mesh.triangulate`)."""
     hinges = _hinges(building)
     h = _edge_len(min(max_area, feature_area or max_area))
     for hg in hinges:  # the first split: pieces of about the feature size
@@ -99,7 +104,7 @@ def triangulate_building(building, max_area: float = MAX_AREA, min_angle: float 
         hg["s"] = np.linspace(0.0, 1.0, n + 1)
     charts = {s.name: _StairChart(building, s) for s in building.stairs}
     opts = dict(max_area=max_area, min_angle=min_angle, feature_area=feature_area,
-                max_cells=max_cells)
+                max_cells=max_cells, size_of=size_of)
     for _ in range(MAX_STITCH_ROUNDS):
         levels = [_mesh_level(lv, hinges, opts) for lv in building.levels]
         stairs = [_mesh_stair(s, charts[s.name], hinges, opts) for s in building.stairs]
@@ -118,6 +123,16 @@ def _mesh_level(lv, hinges, opts) -> TriMesh:
     extra = [Exit(hg["name"], [tuple(hg["a"] + s * (hg["b"] - hg["a"])) for s in hg["s"]])
              for hg in mine]
     room = lv.room.with_changes(exits=tuple(lv.room.exits) + tuple(extra))
+    return _triangulate_piece(room, opts)
+
+
+def _triangulate_piece(room, opts) -> TriMesh:
+    """:func:`~pedmesh.mesh.triangulate` of one piece's room with the building's options
+    (``size_of``, if given, makes the piece's own size field)."""
+    opts = dict(opts)
+    size_of = opts.pop("size_of", None)
+    if size_of is not None:
+        opts["size"] = size_of(room)
     return triangulate(room, **opts)
 
 
@@ -131,7 +146,7 @@ def _mesh_stair(s, chart: _StairChart, hinges, opts) -> TriMesh:
         exits.append(Exit(hg["name"], [tuple(p) for p in chart.to_chart(line)]))
     room = Room(outline=[tuple(p) for p in chart.to_chart(np.asarray(s.polygon))],
                 exits=exits, name=s.name)
-    return triangulate(room, **opts)
+    return _triangulate_piece(room, opts)
 
 
 def _refine_hinges(building, hinges, levels, stairs, charts) -> bool:

@@ -66,11 +66,29 @@ class SFMRun:
             if n is None or n == sum(counts):
                 population = draw_population(src, counts, seed=0 if seed is None else seed)
         self.population = population
-        self.sim = Simulation(mesh, positions, params=self.params, numerics=self.numerics,
-                              reroute=not static_routes, population=population, seed=seed)
+        self.sim = Simulation(self._walking_mesh(room, mesh), positions, params=self.params,
+                              numerics=self.numerics, reroute=not static_routes,
+                              population=population, seed=seed)
         self.mesh = mesh
         room = room if room is not None else mesh.room
         self._finish_init(static_routes, rate, room.walkable.wkt if room is not None else None)
+
+    def _walking_mesh(self, room, mesh):
+        """The mesh the pedestrians walk on and the routes are solved on: with
+        ``route_resolution``, the room's route mesh (:func:`~pedmesh.mesh.route_mesh.
+        route_mesh`), whatever the run's mesh (which then carries the output); without it,
+        or for a bare mesh without a room, the run's mesh."""
+        res = self.numerics.route_resolution
+        site = room if room is not None else getattr(mesh, "room", None)
+        self.route_mesh = None
+        if res is None or site is None:
+            return mesh
+        from ...mesh.route_mesh import route_mesh
+
+        kernel = self.params.route_kernel if self.params.route_kernel is not None \
+            else self.params.R
+        self.route_mesh = route_mesh(site, resolution=res, kernel=kernel)
+        return self.route_mesh
 
     def _check_rate(self, rate: float) -> None:
         """A one-line error for a trajectory rate that is not positive or above one frame per
@@ -138,7 +156,7 @@ class SFMRun:
         if self.population is not None:  # what was drawn: min, mean, max of each
             sim = self.sim
             mmm = lambda a: [float(a.min()), float(a.mean()), float(a.max())]  # noqa: E731
-            groups = np.bincount(sim.toff // max(self.mesh.n_triangles, 1),
+            groups = np.bincount(sim.toff // max(sim.mesh.n_triangles, 1),
                                  minlength=len(sim._targets))
             out["population"] = {
                 "premovement_s": mmm(self.population.premovement),
@@ -217,14 +235,19 @@ class SFMRun:
             "speed": np.hypot(v[:, 0], v[:, 1]) if len(v) else np.zeros(0),
             "density": sim.densities,
         })
-        writer.call(_density_frame, sim.t, self.mesh, sim.vertex_density(), sim.positions, v,
-                    self.params.R)
+        writer.call(_density_frame, sim.t, self.mesh, sim.density_at(self.mesh.points),
+                    sim.positions, v, self.params.R)
 
     def summary(self) -> dict[str, Any]:
         sim = self.sim
         t50, t90, t100 = evacuation_times(sim.exit_time, sim.n_initial)
         per_exit = np.bincount(sim.exit_id[sim.exit_id >= 0], minlength=len(self.mesh.exit_names))
         tm = sim.timers
+        extra = {}
+        if self.route_mesh is not None:  # walked on a route mesh of its own
+            extra["route_mesh"] = {"triangles": int(self.route_mesh.n_triangles),
+                                   "vertices": int(self.route_mesh.n_points),
+                                   "resolution_m": self.numerics.route_resolution}
         return {
             "n_initial": sim.n_initial,
             "n_evacuated": sim.n_evacuated,
@@ -238,6 +261,7 @@ class SFMRun:
             "frame_rate": self.trajectory_rate,
             "trajectory_frames": self._traj_frame,
             "time_split_s": {"forces": tm.forces, "settle": tm.settle, "routing": tm.routing},
+            **extra,
         }
 
 

@@ -145,6 +145,7 @@ class SurfaceSimulation(Simulation):
                                  "buildings yet")
         self._solver = BuildingRoutes(self.atlas)
         self._group_solvers = [None]
+        self._set_route_density()
         self._route()
 
     def _route(self) -> None:
@@ -156,7 +157,7 @@ class SurfaceSimulation(Simulation):
         t0 = time.perf_counter()
         if self.reroute or self.steps == 0:
             a = self.atlas
-            rho_atlas = self.vertex_density()
+            rho_atlas = self.route_density()
             rho_v = np.zeros(a.surface.n_points)
             np.maximum.at(rho_v, a.to_surface, rho_atlas)  # (the denser copy of a hinge vertex)
             phi_s, field_, factors = self._solver.solve(self.params.speed.route_cost(rho_v))
@@ -300,7 +301,15 @@ class BuildingSFMRun(SFMRun):
                         "yet (the social force model takes plain start areas there)")
         self.building = building
         self.surface = mesh
-        self.atlas = build_atlas(mesh)
+        walk = self._walking_mesh(building, mesh)
+        self.atlas = build_atlas(walk)
+        #: the atlas of the run's mesh, where the density frames are written
+        self._out_atlas = self.atlas
+        if walk is not mesh:
+            self._out_atlas = build_atlas(mesh)
+            if not np.allclose(self._out_atlas.offset, self.atlas.offset, rtol=0, atol=1e-6):
+                raise SimulationError("the building's route mesh lies elsewhere in the atlas "
+                                      "than its mesh (an internal error)")
         x, _ = building_positions(building, self.atlas, seed=seed, radius=self.params.r)
         if len(x) == 0:
             raise SimulationError("no start positions: the building's levels have no "
@@ -378,7 +387,8 @@ class BuildingSFMRun(SFMRun):
             "piece": sim.piece_of().astype(np.int64),
         })
         rho = np.zeros(self.surface.n_points)
-        np.maximum.at(rho, self.atlas.to_surface, sim.vertex_density())
+        out = self._out_atlas
+        np.maximum.at(rho, out.to_surface, sim.density_at(out.open.points))
         writer.density_frame(sim.t, self.surface, point_data={"density": rho})
 
     def summary(self):

@@ -44,6 +44,7 @@ class SocialForceParams:
     crowd_knee: float = P.field("crowd_knee")
     queue_width: float = P.field("queue_width")
     crowd_width: float = P.field("crowd_width")
+    route_kernel: float | None = P.field("route_kernel")
 
     def __post_init__(self) -> None:
         P.check_fields(self)
@@ -89,6 +90,7 @@ class SFMNumerics:
 
     dt: float = P.field("dt")
     route_interval: float = P.field("route_interval")
+    route_resolution: float | None = P.field("route_resolution")
     force_cutoff: float = P.field("force_cutoff")
     density_cutoff: float = P.field("density_cutoff")
     density_stages: int = P.field("density_stages")

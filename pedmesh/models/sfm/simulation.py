@@ -308,6 +308,7 @@ class Simulation:
             self._use_const = False
         self.phi = np.zeros(mesh.n_points)
         self._next_route = 0.0
+        self._set_route_density()
         if not self._use_const:
             from ...eikonal import EikonalSolver
 
@@ -491,13 +492,31 @@ class Simulation:
                          self.rc_d, out)
         return out
 
+    def _set_route_density(self) -> None:
+        """The grid of the route's crowd density (``route_kernel`` set), else None."""
+        self._route_grid = None
+        if self.params.route_kernel is not None and not self._use_const:
+            from ...analysis.fields import GridKernelDensity
+
+            self._route_grid = GridKernelDensity(self.mesh.points, self.params.route_kernel)
+
+    def route_density(self) -> np.ndarray:
+        """The crowd density [ped/m^2] the route cost reads, at the mesh's vertices: the
+        Gaussian kernel density of width ``route_kernel`` (on a grid,
+        :class:`~pedmesh.analysis.fields.GridKernelDensity`), or without one the kernel
+        density of width R (eq3, eq4) as the paper has it."""
+        if self._route_grid is None:
+            return self.vertex_density()
+        return self._route_grid(self.x[: self.n])
+
     def _route(self) -> None:
-        """Re-solve the route potential with cost 1/U_e(rho) at the vertices."""
+        """Re-solve the route potential with cost 1/U_e(rho) at the vertices, rho the
+        crowd's :meth:`route_density`."""
         from ...eikonal.direction import DirectionField
 
         t0 = time.perf_counter()
         if self.reroute or self.steps == 0:
-            rho_v = self.vertex_density()
+            rho_v = self.route_density()
             cost = self.params.speed.route_cost(rho_v)
             self.phi = self._solver.solve(cost)
             field_ = DirectionField(self.mesh, self.phi)

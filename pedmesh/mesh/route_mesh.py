@@ -1,0 +1,126 @@
+"""The mesh the social force model's routes are solved on, whatever mesh the run has.
+
+A route bends at door jambs, pillars and the ends of exits, and it reads the crowd on the
+scale ``L`` of its density kernel (the parameter ``route_kernel``). Fast marching is first
+order: its directions near a reflex corner are only as good as the triangles there, and a
+cost that varies on the scale ``L`` needs edges well below ``L``. The run's mesh is chosen for
+the output (or for the continuum models) and may be far coarser or finer than that, so a
+social force run with ``route_resolution`` set walks on a mesh of its own: edges of
+``route_resolution`` [m] at the exits and at the reflex corners of the walkable area, growing
+by :data:`ROUTE_GROWTH` metres per metre away from them, up to :data:`OPEN_EDGE_PER_KERNEL`
+times ``L`` in the open. The answer is then the same on any mesh the user gives
+(docs/validation/route_convergence.md measures how it converges with ``route_resolution``).
+
+A building's route mesh is :func:`~pedmesh.mesh.building.triangulate_building` with the same
+grading on every level and stair (whose stair edges count as exits).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import OrderedDict
+
+import numpy as np
+import shapely
+
+from ..errors import MeshError
+from .triangulate import (MAX_CELLS, MIN_ANGLE, _edge_to_area, _nearest_distance,
+                          estimate_cells, triangulate)
+from .triangle_mesh import room_fingerprint
+
+__all__ = ["route_mesh", "route_size_field", "reflex_corners", "OPEN_EDGE_PER_KERNEL",
+           "ROUTE_GROWTH"]
+
+#: the route mesh's edge length in the open, in units of the route kernel's width: a third
+#: of L puts about four edges across the kernel's half-width
+OPEN_EDGE_PER_KERNEL = 1.0 / 3.0
+#: [m per m] growth of the route mesh's edges away from exits and reflex corners
+ROUTE_GROWTH = 0.2
+#: [degrees] a boundary vertex where the walkable area turns inwards by more than this is a
+#: reflex corner (a door jamb, a pillar's corner, the mouth of a corridor)
+REFLEX_TURN = 15.0
+#: route meshes kept for reuse (an ensemble or a fit builds the same one many times)
+_CACHE_SIZE = 8
+_cache: "OrderedDict[tuple, object]" = OrderedDict()
+
+
+def reflex_corners(room, min_turn: float = REFLEX_TURN) -> np.ndarray:
+    """(c, 2) [m] the vertices of the walkable area's boundary (outline and obstacles) where
+    the boundary turns into the walkable area by more than ``min_turn`` degrees: the
+    corners around which routes bend."""
+    poly = shapely.geometry.polygon.orient(room.walkable, 1.0)  # outline ccw, holes cw
+    out = []
+    for ring in [poly.exterior, *poly.interiors]:
+        c = np.asarray(ring.coords)[:-1]
+        a = c - np.roll(c, 1, axis=0)
+        b = np.roll(c, -1, axis=0) - c
+        turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+                                     np.einsum("ij,ij->i", a, b)))
+        # the walkable area lies to the left of every ring: a right turn is a reflex corner
+        out.append(c[turn < -min_turn])
+    return np.concatenate(out) if out else np.zeros((0, 2))
+
+
+def route_size_field(room, resolution: float, open_edge: float,
+                     growth: float = ROUTE_GROWTH):
+    """The route mesh's size field: (p, 2) points [m] -> largest triangle area [m^2], of an
+    equilateral triangle with edge ``resolution + growth d`` [m] (``d`` the distance to the
+    nearest exit or reflex corner), at most ``open_edge`` [m]."""
+    features = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
+    features += list(shapely.points(reflex_corners(room)))
+    tree = shapely.STRtree(features)
+
+    def size(xy: np.ndarray) -> np.ndarray:
+        xy = np.asarray(xy, float).reshape(-1, 2)
+        h = np.minimum(resolution + growth * _nearest_distance(tree, xy), open_edge)
+        return _edge_to_area(h)
+
+    return size
+
+
+def open_edge_of(kernel: float) -> float:
+    """The route mesh's edge [m] in the open for a route kernel of width ``kernel`` [m]."""
+    return OPEN_EDGE_PER_KERNEL * float(kernel)
+
+
+def route_mesh(site, *, resolution: float, kernel: float, max_cells: float | None = None):
+    """The mesh a social force run on ``site`` (a :class:`~pedmesh.geometry.Room` or a
+    :class:`~pedmesh.geometry.Building`) walks on: edges of ``resolution`` [m] at the exits
+    and reflex corners, ``kernel`` / 3 [m] in the open (see the module docstring). The last
+    few are kept and reused. A one-line :class:`~pedmesh.errors.MeshError` names the
+    parameters when the mesh would be too large."""
+    for name, v in (("route_resolution", resolution), ("route_kernel", kernel)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise MeshError(f"{name} must be a positive number of metres, got {v!r}")
+    h_open = max(open_edge_of(kernel), float(resolution))
+    if hasattr(site, "levels"):  # a building (not kept: its levels are meshed anew)
+        from .building import triangulate_building
+
+        return triangulate_building(
+            site, max_area=float(_edge_to_area(h_open)), feature_area=None,
+            max_cells=max_cells,
+            size_of=lambda room: route_size_field(room, float(resolution), h_open))
+    key = (room_fingerprint(site), float(resolution), float(h_open), max_cells)
+    mesh = _cache.get(key)
+    if mesh is None:
+        size = route_size_field(site, float(resolution), h_open)
+        max_area = float(_edge_to_area(h_open))
+        limit = MAX_CELLS if max_cells is None else float(max_cells)
+        n = estimate_cells(site, max_area, [size])
+        if n > limit:  # (named by the route's parameters, not the run's mesh options)
+            raise MeshError(
+                f"room '{site.name}': the social force model's route mesh would have about "
+                f"{n:,.0f} triangles (route_resolution {resolution:g} m, route_kernel "
+                f"{kernel:g} m), more than the limit of {limit:,.0f}; use a larger "
+                "route_resolution or route_kernel (--param NAME=VALUE)")
+        mesh = triangulate(site, max_area=max_area, min_angle=MIN_ANGLE, feature_area=None,
+                           size=size, max_cells=math.inf)
+        _cache[key] = mesh
+        if len(_cache) > _CACHE_SIZE:
+            _cache.popitem(last=False)
+    else:
+        _cache.move_to_end(key)
+    if mesh.room is not site:  # the same walls and exits: this room's crowd
+        mesh = dataclasses.replace(mesh, room=site)
+    return mesh
