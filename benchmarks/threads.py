@@ -324,7 +324,7 @@ def sfm_cases(args):
         lay, pos = K.pair_blocks(n, start, order, sim._cnx, sim._cny, t)
         listed[t] = (lay, pos) + K.list_pairs(
             x, n, start, order, sim._cnx, sim._cny, rc_list, sim.rc_f + PAIR_SKIN, pi, pj, rw,
-            sim.rc_d, p.R, not every, lay, pos)
+            sim.rc_d, p.R, not every, lay, pos, e, sim._space[6:8])
 
     def blocks():
         """The list's blocks for the current thread count (the list is the same for any)."""
@@ -337,7 +337,7 @@ def sfm_cases(args):
         lay, pos, nn, nf = blocks()
         K.pair_accel_blocks(x, v, n, pi, pj, nn, nf, lay, pos, start, sim.rc_f, sim.rc_d,
                             sim.rad, p.A, p.B, p.k, p.kappa, p.m, p.R, F, rw, every, sim._rs
-                            if p.shrink > 0 else sim.rad, p.vision, e)
+                            if p.shrink > 0 else sim.rad, p.vision, e, sim._space[6:8])
 
     def stage():
         lay, pos, nn, nf = blocks()

@@ -336,6 +336,19 @@ SFM_TERMS: tuple[Parameter, ...] = declare(
               "of someone straight behind counts this much, straight ahead fully (1: "
               "isotropic, the paper's model)", "Helbing & Molnar 1995; Helbing et al. 2000",
               low=0.0, high=1.0, low_closed=True, high_closed=True),
+    Parameter("density_cone", 0.0, "-", "the desired speed reads the crowd ahead: in the "
+              "kernel density each neighbour counts max(0, cos)^p times (p this value, cos "
+              "the cosine between one's desired direction and the neighbour), normalised so "
+              "that a uniform crowd reads its density; 0: every neighbour counts fully, the "
+              "paper's eq3 (range: 0 to a cone narrower than a body's width at 1 m)",
+              "a walker's speed follows the space in front (Seyfried et al., J. Stat. Mech. "
+              "2005; the headway of Tordeux, Chraibi & Seyfried's collision-free speed "
+              "model, 2016)", low=0.0, low_closed=True, range=(0.0, 16.0)),
+    Parameter("wall_repulsion", 1.0, "-", "the walls' social repulsion A exp((r - d)/B) "
+              "as a share of the pedestrians' (1: Helbing's, the paper's; 0: a wall pushes "
+              "only on contact, and the route keeps people off walls: route_clearance)",
+              "Helbing, Farkas & Vicsek 2000 (walls as people); docs/validation/"
+              "door_physics.md", low=0.0, high=1.0, low_closed=True, high_closed=True),
     Parameter("crowd_stretch", 1.0, "-", "queueing or crowding: where the free width is at "
               "least crowd_width, the speed law above crowd_knee is read at densities this "
               "many times lower (1: off, the paper's model)", ADRIAN_SOURCE, low=1.0,
@@ -358,6 +371,15 @@ ROUTES: tuple[Parameter, ...] = declare(
               "reach to a hall)", "pedmesh (docs/validation/route_convergence.md): about "
               "the size of the areas in which crowd densities are measured (the Juelich "
               "corridors' 1.8 x 2 m)", optional=True, range=(0.5, 10.0)),
+    _non_negative("route_clearance", 0.0, "m", "the route keeps off the walls: its cost "
+                  "per metre rises towards a wall or obstacle within this distance, "
+                  "(1 + 3 (1 - d/route_clearance)^2) times at d from it, four times on it, so "
+                  "routes pass doors through their middle and keep a body's width off jambs "
+                  "and walls (0: off, the paper's geodesics, which graze every corner)",
+                  "a route is planned for the body's centre, which stays a radius and a "
+                  "margin off walls (the boundary layers of the effective width, SFPE "
+                  "Handbook: 0.15 m at walls to 0.46 m in wide concourses); "
+                  "docs/validation/door_physics.md", range=(0.0, 5.0)),
 )
 
 #: the social force model's numerics

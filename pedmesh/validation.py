@@ -137,14 +137,18 @@ def published_bottleneck_flows() -> list[dict[str, Any]]:
     return [{**s, "points": np.asarray(s["points"], float)} for s in data["series"]]
 
 
-def published_band(width_m: float) -> tuple[float, float, int]:
+def published_band(width_m: float, opening: str | None = None) -> tuple[float, float, int]:
     """(lowest, highest) published specific flow J/b [1/(m s)] of the points of
     :func:`published_bottleneck_flows` whose width is within ``BAND_WIDTH_TOLERANCE`` of
     ``width_m`` [m] (at least ``BAND_MIN_TOLERANCE_M``), and how many points there are
-    ((nan, nan, 0) if none)."""
+    ((nan, nan, 0) if none). ``opening``: only the series of that kind, ``"short"`` (doors
+    and openings in a wall) or ``"long"`` (corridor-like openings); None: all."""
+    if opening not in (None, "short", "long"):
+        raise ParameterError(f"opening must be 'short', 'long' or None, got {opening!r}")
     tol = max(BAND_MIN_TOLERANCE_M, BAND_WIDTH_TOLERANCE * width_m) + 1e-12
-    jb = [float(J / b) for s in published_bottleneck_flows() for b, J in s["points"]
-          if abs(b - width_m) <= tol]
+    jb = [float(J / b) for s in published_bottleneck_flows()
+          if opening is None or s.get("opening") == opening
+          for b, J in s["points"] if abs(b - width_m) <= tol]
     return (min(jb), max(jb), len(jb)) if jb else (math.nan, math.nan, 0)
 
 

@@ -86,7 +86,13 @@ FRONT_DEPTH = 1.0
 FRONT_MARGIN = 0.5
 BOTTLENECK_LENGTH = 2.8  # [m]
 BOTTLENECK_PEOPLE = 150
-PARTS = ("corridor", "bottleneck", "free")
+#: [m] the series of doors in a thin wall (issue 44: 0.4-1.6 m, Kretz et al. 2006's
+#: 0.4-1.2 m and Mueller 1981's up to 1.8 m)
+WALL_DOOR_WIDTHS = (0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.6)
+#: [m] the wall's thickness (Kretz et al. 2006: 0.2 m) and the depth of the room behind it
+WALL_THICKNESS = 0.2
+ROOM_BEHIND = 4.0
+PARTS = ("corridor", "bottleneck", "walldoor", "free")
 
 
 def default_data_dir() -> Path:
@@ -114,6 +120,26 @@ def bottleneck_room(width_m: float, *, length_m: float = BOTTLENECK_LENGTH,
                 measurement_lines=[MeasurementLine("middle", [(xl, d_wait + 0.5 * length_m),
                                                               (xr, d_wait + 0.5 * length_m)])],
                 name=f"bottleneck-b{width_m:g}")
+
+
+def wall_door_room(width_m: float, *, people: int = BOTTLENECK_PEOPLE) -> Room:
+    """The bottleneck series' waiting area (8 x 7.5 m, ``people`` on a lattice) in front of
+    a door of width ``width_m`` [m] in a wall WALL_THICKNESS thick, centred on it, and a
+    room 8 m wide and ROOM_BEHIND deep behind the wall, whose far wall is the exit; the flow
+    line ``middle`` lies across the door half way through the wall."""
+    w_wait, d_wait = 8.0, 7.5
+    xl, xr = 0.5 * (w_wait - width_m), 0.5 * (w_wait + width_m)
+    y1 = d_wait + WALL_THICKNESS
+    y2 = y1 + ROOM_BEHIND
+    outline = [(0, 0), (w_wait, 0), (w_wait, d_wait), (xr, d_wait), (xr, y1), (w_wait, y1),
+               (w_wait, y2), (0, y2), (0, y1), (xl, y1), (xl, d_wait), (0, d_wait)]
+    return Room(outline, exits=[Exit("exit", [(w_wait, y2), (0, y2)])],
+                start_areas=[StartArea("waiting", [(0.2, 0.2), (w_wait - 0.2, 0.2),
+                                                   (w_wait - 0.2, d_wait - 0.2),
+                                                   (0.2, d_wait - 0.2)], count=people)],
+                measurement_lines=[MeasurementLine("middle", [
+                    (xl, d_wait + 0.5 * WALL_THICKNESS), (xr, d_wait + 0.5 * WALL_THICKNESS)])],
+                name=f"walldoor-b{width_m:g}")
 
 
 def bottleneck_setup(room: Room, width_m: float) -> V.MeasurementSetup:
@@ -334,15 +360,21 @@ def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None
 
 def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
                     trajectory_rate: float = 10.0, widths: Iterable[float] = BOTTLENECK_WIDTHS,
-                    seeds: Iterable[int | None] = (None,), log=print) -> list[dict[str, Any]]:
+                    seeds: Iterable[int | None] = (None,), log=print,
+                    opening: str = "long") -> list[dict[str, Any]]:
     """The bottleneck series: per width b [m], the specific flow J/b [1/(m s)] at the middle
-    of the corridor, PedPy's Voronoi density [1/m^2] in front of the opening (mean over the
-    flow's steady state), the published band of J/b at that width, and who was left inside
-    at the end (``stuck``); the means over the realisations ``seeds``."""
+    of the opening, PedPy's Voronoi density [1/m^2] in front of it (mean over the flow's
+    steady state), the published band of J/b at that width, and who was left inside at the
+    end (``stuck``); the means over the realisations ``seeds``. ``opening``: ``long`` (the
+    2.8 m long openings of :func:`bottleneck_room`, against every published series) or
+    ``short`` (the doors in a thin wall of :func:`wall_door_room`, against the published
+    doors and short openings, ``published_band(b, "short")``)."""
     rows = []
     seeds = tuple(seeds)
+    make = {"long": bottleneck_room, "short": wall_door_room}[opening]
+    band_of = "short" if opening == "short" else None
     for b in widths:
-        room = bottleneck_room(b)
+        room = make(b)
         setup = bottleneck_setup(room, b)
         flows, dens, summaries = [], [], []
         for seed in seeds:
@@ -357,7 +389,7 @@ def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float
         bad = [s for s in summaries if s["error"] is not None or s.get("status") != "finished"]
         s = bad[0] if bad else summaries[0]
         flow = _mean(flows)
-        lo, hi, n_pub = V.published_band(b)
+        lo, hi, n_pub = V.published_band(b, band_of)
         stuck = max((int(x.get("n_initial") or 0) - int(x.get("n_evacuated") or 0)
                      for x in summaries if x["error"] is None), default=-1)
         row = {"width_m": b, "J": flow, "J_per_b": flow / b, "status": s.get("status"),
@@ -370,13 +402,17 @@ def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float
             row["J_per_b_sims"] = [f / b for f in flows]
             row["front_density_sims"] = [float(d) for d in dens]
         rows.append(row)
-        log(f"  bottleneck b = {b:g} m: {row['status']}, {row['wall_s']:.1f} s wall"
+        log(f"  {'door in a wall' if opening == 'short' else 'bottleneck'} b = {b:g} m: "
+            f"{row['status']}, {row['wall_s']:.1f} s wall"
             + (f" ({row['error']})" if row["error"] else ""))
     return rows
 
 
-def plot_bottleneck(rows: list[Mapping[str, Any]], path: Path, title: str = "") -> None:
-    """``path`` (PNG): the series' J/b and front density against the published points."""
+def plot_bottleneck(rows: list[Mapping[str, Any]], path: Path, title: str = "",
+                    doors: list[Mapping[str, Any]] | None = None) -> None:
+    """``path`` (PNG): the series' J/b and front density against the published points (the
+    doors and short openings filled, the long openings open); ``doors``: the doors in a
+    thin wall too, against the short openings' band."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -386,26 +422,32 @@ def plot_bottleneck(rows: list[Mapping[str, Any]], path: Path, title: str = "") 
     markers = "osD^v<>ph"
     for k, ser in enumerate(V.published_bottleneck_flows()):
         pts = ser["points"]
-        a1.plot(pts[:, 0], pts[:, 1] / pts[:, 0], markers[k % len(markers)], mfc="none",
-                color="0.45", ms=5, label=ser["label"])
-    b = np.array([r["width_m"] for r in rows])
-    jb = np.array([r["J_per_b"] for r in rows], float)
-    band = np.array([r["band"] for r in rows], float)
-    a1.fill_between(b, band[:, 0], band[:, 1], color="tab:green", alpha=0.15,
-                    label="published band at the series' widths")
-    a1.plot(b, jb, "-o", color="tab:red", lw=2, label="pedmesh SFM")
-    a1.set_xlabel("bottleneck width b [m]")
+        short = ser.get("opening") == "short"
+        a1.plot(pts[:, 0], pts[:, 1] / pts[:, 0], markers[k % len(markers)],
+                mfc="0.6" if short else "none", color="0.45", ms=5,
+                label=f"{ser['label']} ({ser.get('opening', '?')})")
+    lo, hi = V.PRESSING_FRONT_DENSITY_PER_M2
+    a2.axhspan(lo, hi, color="tab:green", alpha=0.12,
+               label="pressing crowds in front of entrances (Adrian et al. 2020)")
+    series = [("2.8 m long openings", rows, "tab:red", "tab:green")]
+    if doors:
+        series.append((f"doors in a {WALL_THICKNESS:g} m wall", doors, "tab:blue", "tab:blue"))
+    for label, ser, color, band_color in series:
+        b = np.array([r["width_m"] for r in ser])
+        band = np.array([r["band"] for r in ser], float)
+        a1.fill_between(b, band[:, 0], band[:, 1], color=band_color, alpha=0.12,
+                        label=f"published band ({label})")
+        a1.plot(b, np.array([r["J_per_b"] for r in ser], float), "-o", color=color, lw=2,
+                label=f"pedmesh SFM, {label}")
+        a2.plot(b, np.array([r["front_density"] for r in ser], float), "-o", color=color, lw=2,
+                label=f"pedmesh SFM, {label}")
+    a1.set_xlabel("width b [m]")
     a1.set_ylabel("specific flow J/b [1/(m s)]")
     a1.set_xlim(0.3, 2.8)
     a1.set_ylim(1.0, 3.0)
-    a1.legend(fontsize=7, ncol=2)
+    a1.legend(fontsize=6, ncol=2)
     a1.grid(alpha=0.3)
-    rho = np.array([r["front_density"] for r in rows], float)
-    lo, hi = V.PRESSING_FRONT_DENSITY_PER_M2
-    a2.axhspan(lo, hi, color="tab:green", alpha=0.15,
-               label="pressing crowds in front of entrances (Adrian et al. 2020)")
-    a2.plot(b, rho, "-o", color="tab:red", lw=2, label="pedmesh SFM")
-    a2.set_xlabel("bottleneck width b [m]")
+    a2.set_xlabel("width b [m]")
     a2.set_ylabel(f"Voronoi density in front [1/m$^2$] ({FRONT_DEPTH:g} m deep)")
     a2.set_ylim(0, 10)
     a2.legend(fontsize=7)
@@ -455,6 +497,9 @@ def errors_of(results: Mapping[str, Any]) -> dict[str, float]:
     for row in results.get("bottleneck") or []:
         failed += row["error"] is not None
         err[f"bottleneck/b={row['width_m']:g}"] = row["err"]
+    for row in results.get("walldoor") or []:
+        failed += row["error"] is not None
+        err[f"walldoor/b={row['width_m']:g}"] = row["err"]
     free = results.get("free")
     if free:
         failed += free["error"] is not None
@@ -472,13 +517,15 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
                    trajectory_rate: float = 10.0, fd_frames: str = "all",
                    entrance: str = "door", seeds: Iterable[int | None] = (None,),
                    widths: Iterable[float] = BOTTLENECK_WIDTHS,
+                   door_widths: Iterable[float] = WALL_DOOR_WIDTHS,
                    log=print) -> dict[str, Any]:
-    """Run the ``parts`` (``corridor``, ``bottleneck``, ``free``) with parameter
+    """Run the ``parts`` (``corridor``, ``bottleneck``, ``walldoor``, ``free``) with parameter
     ``overrides`` on top of ``preset``; every number, the errors (:func:`errors_of`) and
     the wall time [s]. The runs go to ``out_dir/runs`` (a temporary directory if None).
     ``seeds``: the realisations of every corridor and bottleneck run (None: the
     unjittered lattice and entrance spots); the values are their means, the FD their
-    pooled samples. ``widths``: the bottleneck series' widths [m]."""
+    pooled samples. ``widths``, ``door_widths``: the widths [m] of the bottleneck series
+    and of the doors in a wall."""
     parts = tuple(parts)
     seeds = tuple(seeds)
     if not seeds:
@@ -501,6 +548,9 @@ def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | Non
                                                 fd_frames=fd_frames, entrance=entrance, **kw)
         if "bottleneck" in parts:
             results["bottleneck"] = bottleneck_part(runs / "bottleneck", widths=widths, **kw)
+        if "walldoor" in parts:
+            results["walldoor"] = bottleneck_part(runs / "walldoor", widths=door_widths,
+                                                  opening="short", **kw)
         if "free" in parts:
             results["free"] = free_part(runs / "free", **kw)
     results["errors"] = errors_of(results)
@@ -557,21 +607,28 @@ def tables(results: Mapping[str, Any]) -> list[tuple[str, list[str], list[list[s
                 row.insert(6, " ".join(_pct(_rel(v, b["speed_exp"])) for v in b["speed_sims"]))
         out.append((f"Pooled Voronoi speed [m/s] by density ({corridor['fd_frames']} frames"
                     f"{seeds_txt})", head, rows))
-    if results.get("bottleneck"):
+    for key, title in (
+            ("bottleneck", "Bottleneck series (2.8 m long openings): specific flow against the "
+                           "published band (every series' points within 12 % of the width)"),
+            ("walldoor", f"Doors in a {WALL_THICKNESS:g} m wall: specific flow against the "
+                         "published band of doors and short openings (their points within "
+                         "12 % of the width)")):
+        series = results.get(key)
+        if not series:
+            continue
         head = ["b [m]", "J [1/s]", "J/b sim [1/(m s)]", "published J/b", "in band",
                 "rho front [1/m^2]", "stuck", "wall [s]"]
         rows = [[f"{r['width_m']:g}", _f(r["J"]), _f(r["J_per_b"]),
                  f"{_f(r['band'][0])}-{_f(r['band'][1])} ({r['band_points']})",
                  "yes" if r["in_band"] else "no", _f(r["front_density"]), str(r["stuck"]),
                  _f(r["wall_s"], ".1f")]
-                for r in results["bottleneck"]]
-        if any("J_per_b_sims" in r for r in results["bottleneck"]):
+                for r in series]
+        if any("J_per_b_sims" in r for r in series):
             head.insert(3, "J/b per realisation")
-            for row, r in zip(rows, results["bottleneck"]):
+            for row, r in zip(rows, series):
                 row.insert(3, " ".join(_f(v) for v in r.get("J_per_b_sims", [])))
-        out.append(("Bottleneck series: specific flow against the published band (points "
-                    "within 12 % of the width), Voronoi density in front of the opening, and "
-                    "who was left inside", head, rows))
+        out.append((f"{title}, Voronoi density in front of the opening, and who was left "
+                    "inside", head, rows))
     free = results.get("free")
     if free:
         out.append(("Free walking", ["v sim [m/s]", "v ref [m/s]", "err", "samples", "wall [s]"],
@@ -622,7 +679,7 @@ def write_report(results: Mapping[str, Any], out_dir: Path) -> None:
     if results.get("bottleneck"):
         plot_bottleneck(results["bottleneck"], out_dir / "bottleneck.png",
                         f"preset {results['preset'] or 'default'}, overrides "
-                        f"{results['overrides'] or 'none'}")
+                        f"{results['overrides'] or 'none'}", doors=results.get("walldoor"))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -639,9 +696,11 @@ def main(argv: list[str] | None = None) -> int:
                     help="parameter override (repeatable)")
     ap.add_argument("--out", type=Path, default=Path("runs") / "validation", metavar="DIR")
     ap.add_argument("--bottleneck", action="store_true", help="also the bottleneck widths")
+    ap.add_argument("--walldoor", action="store_true",
+                    help="also the doors in a thin wall (the short-opening series)")
     ap.add_argument("--free", action="store_true", help="also free walking")
     ap.add_argument("--only-extra", action="store_true",
-                    help="skip the corridor runs (with --bottleneck / --free)")
+                    help="skip the corridor runs (with --bottleneck, --walldoor, --free)")
     ap.add_argument("--t-end", type=float, default=600.0, metavar="T",
                     help="simulated time limit per run [s] (default 600)")
     ap.add_argument("--trajectory-rate", type=float, default=10.0, metavar="FPS")
@@ -665,9 +724,10 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError:
             ap.error(f"--seeds takes integers separated by commas, got {args.seeds!r}")
     parts = [] if args.only_extra else ["corridor"]
-    parts += [p for p, on in (("bottleneck", args.bottleneck), ("free", args.free)) if on]
+    parts += [p for p, on in (("bottleneck", args.bottleneck), ("walldoor", args.walldoor),
+                              ("free", args.free)) if on]
     if not parts:
-        ap.error("nothing to run (--only-extra needs --bottleneck or --free)")
+        ap.error("nothing to run (--only-extra needs --bottleneck, --walldoor or --free)")
     warnings.filterwarnings("ignore", module="pedpy")
     results = run_validation(parse_param_overrides(args.param), args.preset, parts=parts,
                              data_dir=args.data, out_dir=args.out, t_end=args.t_end,

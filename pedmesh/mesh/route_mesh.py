@@ -1,14 +1,16 @@
 """The mesh the social force model's routes are solved on, whatever mesh the run has.
 
-A route bends at door jambs, pillars and the ends of exits, and it reads the crowd on the
-scale ``L`` of its density kernel (the parameter ``route_kernel``). Fast marching is first
-order: its directions near a reflex corner are only as good as the triangles there, and a
-cost that varies on the scale ``L`` needs edges well below ``L``. The run's mesh is chosen for
+A route bends at door jambs, pillars and the ends of exits, it reads the crowd on the scale
+``L`` of its density kernel (the parameter ``route_kernel``), and with ``route_clearance``
+it keeps off the walls on the scale of that clearance. Fast marching is first order: its
+directions near a reflex corner are only as good as the triangles there, and a cost that
+varies on the scale ``L`` needs edges well below ``L``. The run's mesh is chosen for
 the output (or for the continuum models) and may be far coarser or finer than that, so a
 social force run with ``route_resolution`` set walks on a mesh of its own: edges of
 ``route_resolution`` [m] at the exits and at the reflex corners of the walkable area, growing
-by :data:`ROUTE_GROWTH` metres per metre away from them, up to :data:`OPEN_EDGE_PER_KERNEL`
-times ``L`` in the open. The answer is then the same on any mesh the user gives
+by :data:`ROUTE_GROWTH` metres per metre away from them (and, with a clearance, from a third
+of it at the walls by 0.4 m per metre), up to :data:`OPEN_EDGE_PER_KERNEL` times ``L`` in
+the open. The answer is then the same on any mesh the user gives
 (docs/validation/route_convergence.md measures how it converges with ``route_resolution``).
 
 A building's route mesh is :func:`~pedmesh.mesh.building.triangulate_building` with the same
@@ -25,8 +27,8 @@ import numpy as np
 import shapely
 
 from ..errors import MeshError
-from .triangulate import (MAX_CELLS, MIN_ANGLE, _edge_to_area, _nearest_distance,
-                          estimate_cells, triangulate)
+from .triangulate import (MAX_CELLS, MIN_ANGLE, WALL_GROWTH, _edge_to_area,
+                          _nearest_distance, _segments, estimate_cells, triangulate)
 from .triangle_mesh import room_fingerprint
 
 __all__ = ["route_mesh", "route_size_field", "reflex_corners", "OPEN_EDGE_PER_KERNEL",
@@ -63,17 +65,26 @@ def reflex_corners(room, min_turn: float = REFLEX_TURN) -> np.ndarray:
 
 
 def route_size_field(room, resolution: float, open_edge: float,
-                     growth: float = ROUTE_GROWTH):
+                     growth: float = ROUTE_GROWTH, *, wall_edge: float | None = None):
     """The route mesh's size field: (p, 2) points [m] -> largest triangle area [m^2], of an
     equilateral triangle with edge ``resolution + growth d`` [m] (``d`` the distance to the
-    nearest exit or reflex corner), at most ``open_edge`` [m]."""
+    nearest exit or reflex corner), at most ``open_edge`` [m]; with ``wall_edge`` [m] also
+    at most ``wall_edge + WALL_GROWTH d_w`` (``d_w`` the distance to the nearest wall or
+    obstacle: a route that keeps a clearance from walls varies there)."""
     features = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
     features += list(shapely.points(reflex_corners(room)))
     tree = shapely.STRtree(features)
+    wall_tree = None
+    if wall_edge is not None:
+        pieces = shapely.get_parts(shapely.segmentize(room.walkable.boundary,
+                                                      2.0 * wall_edge))
+        wall_tree = shapely.STRtree([w for ln in pieces for w in _segments(ln)])
 
     def size(xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, float).reshape(-1, 2)
         h = np.minimum(resolution + growth * _nearest_distance(tree, xy), open_edge)
+        if wall_tree is not None:
+            h = np.minimum(h, wall_edge + WALL_GROWTH * _nearest_distance(wall_tree, xy))
         return _edge_to_area(h)
 
     return size
@@ -84,27 +95,32 @@ def open_edge_of(kernel: float) -> float:
     return OPEN_EDGE_PER_KERNEL * float(kernel)
 
 
-def route_mesh(site, *, resolution: float, kernel: float, max_cells: float | None = None):
+def route_mesh(site, *, resolution: float, kernel: float, clearance: float = 0.0,
+               max_cells: float | None = None):
     """The mesh a social force run on ``site`` (a :class:`~pedmesh.geometry.Room` or a
     :class:`~pedmesh.geometry.Building`) walks on: edges of ``resolution`` [m] at the exits
-    and reflex corners, ``kernel`` / 3 [m] in the open (see the module docstring). The last
-    few are kept and reused. A one-line :class:`~pedmesh.errors.MeshError` names the
-    parameters when the mesh would be too large."""
+    and reflex corners, ``kernel`` / 3 [m] in the open, and with a ``clearance`` [m] (the
+    route keeps off walls) ``clearance`` / 3 along the walls (see the module docstring).
+    The last few are kept and reused. A one-line :class:`~pedmesh.errors.MeshError` names
+    the parameters when the mesh would be too large."""
     for name, v in (("route_resolution", resolution), ("route_kernel", kernel)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise MeshError(f"{name} must be a positive number of metres, got {v!r}")
     h_open = max(open_edge_of(kernel), float(resolution))
+    h_wall = max(OPEN_EDGE_PER_KERNEL * float(clearance), float(resolution)) \
+        if clearance and clearance > 0 else None
     if hasattr(site, "levels"):  # a building (not kept: its levels are meshed anew)
         from .building import triangulate_building
 
         return triangulate_building(
             site, max_area=float(_edge_to_area(h_open)), feature_area=None,
             max_cells=max_cells,
-            size_of=lambda room: route_size_field(room, float(resolution), h_open))
-    key = (room_fingerprint(site), float(resolution), float(h_open), max_cells)
+            size_of=lambda room: route_size_field(room, float(resolution), h_open,
+                                                  wall_edge=h_wall))
+    key = (room_fingerprint(site), float(resolution), float(h_open), h_wall, max_cells)
     mesh = _cache.get(key)
     if mesh is None:
-        size = route_size_field(site, float(resolution), h_open)
+        size = route_size_field(site, float(resolution), h_open, wall_edge=h_wall)
         max_area = float(_edge_to_area(h_open))
         limit = MAX_CELLS if max_cells is None else float(max_cells)
         n = estimate_cells(site, max_area, [size])

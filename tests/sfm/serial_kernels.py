@@ -19,7 +19,7 @@ import numpy as np
 from pedmesh.eikonal.direction import _inside_packed, _interpolate
 from pedmesh.speed import shape
 from pedmesh.models.sfm.crowding import crowd_factors
-from pedmesh.models.sfm.forces import pair_force  # (unchanged by the threads)
+from pedmesh.models.sfm.forces import cone_weights, pair_force  # (unchanged by the threads)
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
 #: barycentric margin of the division-free "still inside its triangle" test; anything
@@ -55,7 +55,7 @@ def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
 # ------------------------------------------------------------------ pair forces + density
 @nb.njit(cache=False)
 def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
-                with_density):
+                with_density, e, cone):
     """All pairs closer than ``rc``, each once (i from the lower cell), split in two groups:
     the *near* pairs (closer than ``rc_near``) fill ``pi``/``pj`` from the front, the *far*
     ones from the back. Returns ``(n_near, n_far)``, or ``(-1, -1)`` if ``pi``/``pj`` are
@@ -64,7 +64,8 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
     The pair forces only act within the near group (``rc_near`` = force cut-off + skin), so
     the far group needs the density kernel alone. With ``with_density`` the Gaussian kernel
     densities (cut-off ``rc_d``, self term included) at these positions go into ``rho`` on
-    the way, and the far pairs are not stored (``n_far = 0``).
+    the way, and the far pairs are not stored (``n_far = 0``); each weighted by the density
+    cone ``cone`` of the directions ``e`` (``cone_weights``).
     """
     rc2 = rc * rc
     rn2 = rc_near * rc_near
@@ -112,8 +113,10 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
                         d2 = dx * dx + dy * dy
                         if with_density and d2 < rd2:
                             w = w0 * math.exp(-d2 * invR2)
-                            rhoi += w
-                            rho[j] += w
+                            wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1],
+                                                  e[j, 0], e[j, 1])
+                            rhoi += w * wi
+                            rho[j] += w * wj
                         if d2 < rn2:
                             if m_near + m_far >= cap:
                                 return -1, -1
@@ -133,7 +136,7 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
 
 @nb.njit(cache=False)
 def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m, R, F,
-                    rho, with_density, rs, lam, e):
+                    rho, with_density, rs, lam, e, cone):
     """Pair accelerations (into ``F``, zeroed first) and Gaussian kernel densities over a
     pair list from :func:`build_pairs` (a superset of the pairs in range).
 
@@ -167,8 +170,9 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
         d2 = dx * dx + dy * dy
         if with_density and d2 < rc_d2:
             w = w0 * math.exp(-d2 * invR2)
-            rho[i] += w
-            rho[j] += w
+            wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1], e[j, 0], e[j, 1])
+            rho[i] += w * wi
+            rho[j] += w * wj
         if d2 < rc_f2 and d2 > 0.0:
             rij = rad[i] + rad[j]
             sij = rs[i] + rs[j]
@@ -206,8 +210,9 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
         d2 = dx * dx + dy * dy
         if d2 < rc_d2:
             w = w0 * math.exp(-d2 * invR2)
-            rho[i] += w
-            rho[j] += w
+            wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1], e[j, 0], e[j, 1])
+            rho[i] += w * wi
+            rho[j] += w * wj
 
 
 # ------------------------------------------------------------------ space requirement
@@ -428,9 +433,9 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
         social_radii(n, rad, ue, space[0], space[1], crowd, cf, rs)
         soc = rs
     pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m,
-                    R, F, rho, with_density, soc, space[2], e)
+                    R, F, rho, with_density, soc, space[2], e, space[6:8])
     wall_accel(x, v, n, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
-               rc_w, rad, A, B, k, kappa, m, F, soc)
+               rc_w, rad, A * space[5], B, k, kappa, m, F, soc)
     inv_tau = 1.0 / tau
     if use_const:
         for i in range(n):
@@ -560,7 +565,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     rc_list = max(rc_f + skin, rc_d + skin) if every else rc_f + skin
     build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
     n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,
-                                pi, pj, rho, rc_d, R, not every)
+                                pi, pj, rho, rc_d, R, not every, e, space[6:8])
     if n_near < 0:
         return -1
     # stage 1: u1 = u + dt L(u)
@@ -576,7 +581,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
     n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
                                             cinv, cnx, cny, rc_f, rc_d, R, pi, pj, rho, n_near,
-                                            n_far, False)
+                                            n_far, False, e, space[6:8])
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
@@ -592,7 +597,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2)); a list rebuilt for stage 2 has no skin
     n_near, n_far, rebuilt = _refresh_pairs(x, xs, n, skin, cell_start, cell_order, cx0, cy0,
                                             cinv, cnx, cny, rc_f, rc_d, R, pi, pj, rho, n_near,
-                                            n_far, rebuilt)
+                                            n_far, rebuilt, e, space[6:8])
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
@@ -608,7 +613,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
 
 @nb.njit(cache=False)
 def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d,
-                   R, pi, pj, rho, n_near, n_far, force):
+                   R, pi, pj, rho, n_near, n_far, force, e, cone):
     """Keep the pair list (built with skin at ``x0``) if nobody moved more than skin/2 since,
     else (or if ``force``) rebuild it for the positions ``x`` without skin, valid for this
     stage only. Returns ``(n_near, n_far, rebuilt)``."""
@@ -619,7 +624,8 @@ def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, 
         if force or dx * dx + dy * dy > lim:
             build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
             n_near, n_far = build_pairs(x, n, cell_start, cell_order, cnx, cny,
-                                        max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False)
+                                        max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False,
+                                        e, cone)
             return n_near, n_far, True
     return n_near, n_far, False
 

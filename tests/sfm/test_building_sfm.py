@@ -124,7 +124,8 @@ def test_forces_act_across_a_stair_edge():
     F = np.zeros((2, 2))
     rad = np.full(2, p.r)
     hinge_accel(x, np.zeros((2, 2)), nh, hi, hj, hs, 2.0, 2.0, rad, p.A, p.B, p.k, p.kappa,
-                p.m, p.R, F, np.zeros(2), False, rad, 1.0, np.zeros((2, 2)))
+                p.m, p.R, F, np.zeros(2), False, rad, 1.0, np.zeros((2, 2)),
+                np.array([0.0, 1.0]))
     fx, fy = pair_force(d[0], d[1], np.hypot(*d), 0.0, 0.0, 2 * p.r, p.A, 1.0 / p.B, p.k,
                         p.kappa, 2 * p.r)
     i = hi[0]

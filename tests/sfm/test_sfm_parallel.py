@@ -59,9 +59,14 @@ def _crowd(seed: int, n: int = 900):
     return x, v, rad, e, nx, ny, start, order
 
 
+#: the density cones the parallel kernels are checked with: none, and Example p = 2
+CONES = [np.array([0.0, 1.0]), np.array([2.0, 4.0])]
+
+
+@pytest.mark.parametrize("cone", CONES, ids=["isotropic", "cone2"])
 @pytest.mark.parametrize("with_density", [True, False])
 @pytest.mark.parametrize("seed", [0, 1])
-def test_cells_and_pair_list_are_the_serial_ones(seed, with_density):
+def test_cells_and_pair_list_are_the_serial_ones(seed, with_density, cone):
     x, v, rad, e, nx, ny, start, order = _crowd(seed)
     n = len(x)
     start2, order2 = np.zeros_like(start), np.zeros_like(order)
@@ -71,13 +76,13 @@ def test_cells_and_pair_list_are_the_serial_ones(seed, with_density):
     cap = 100 * n  # (each block gets cap / blocks of it)
     pi0, pj0, rho0 = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
     m0 = S.build_pairs(x, n, start, order, nx, ny, rc, rc_near, pi0, pj0, rho0, 2.1, 0.7,
-                       with_density)
+                       with_density, e, cone)
     assert m0[0] > 0 and (m0[1] > 0) != with_density
     for nblocks in (1, 2, 3, 5, 8):
         lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
         pi, pj, rho = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
         m = K.list_pairs(x, n, start, order, nx, ny, rc, rc_near, pi, pj, rho, 2.1, 0.7,
-                         with_density, lay, pos)
+                         with_density, lay, pos, e, cone)
         assert m == m0, nblocks
         near, far = slice(0, m[0]), slice(cap - m[1], cap)
         for a, b in ((pi, pi0), (pj, pj0)):
@@ -91,7 +96,7 @@ def test_cells_and_pair_list_are_the_serial_ones(seed, with_density):
         lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
         assert K.list_pairs(x, n, start, order, nx, ny, rc, rc_near, np.empty(size, np.int64),
                             np.empty(size, np.int64), np.zeros(n), 2.1, 0.7, with_density,
-                            lay, pos) == (-1, -1)
+                            lay, pos, e, cone) == (-1, -1)
 
 
 def _work(start, nx, ny):
@@ -146,18 +151,22 @@ def test_everyone_in_one_cell():
     assert np.count_nonzero(np.diff(start)) <= 4
     cap = 1000 * n  # (one block holds every pair: its share of pi/pj must take them)
     pi0, pj0, rho0 = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
-    m0 = S.build_pairs(x, n, start, order, nx, ny, 1.4, 1.4, pi0, pj0, rho0, 2.1, 0.7, True)
+    e = np.zeros((n, 2))
+    cone = CONES[0]
+    m0 = S.build_pairs(x, n, start, order, nx, ny, 1.4, 1.4, pi0, pj0, rho0, 2.1, 0.7, True,
+                       e, cone)
     for nblocks in (2, 4, 8):
         lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
         pi, pj, rho = np.full(cap, -1), np.full(cap, -1), np.zeros(n)
         m = K.list_pairs(x, n, start, order, nx, ny, 1.4, 1.4, pi, pj, rho, 2.1, 0.7, True,
-                         lay, pos)
+                         lay, pos, e, cone)
         assert m == m0 and _same(pi[:m[0]], pi0[:m0[0]]) and _same(rho, rho0), nblocks
 
 
+@pytest.mark.parametrize("cone", CONES, ids=["isotropic", "cone2"])
 @pytest.mark.parametrize("lam", [1.0, 0.4])
 @pytest.mark.parametrize("with_density", [True, False])
-def test_pair_forces_are_the_serial_ones(lam, with_density):
+def test_pair_forces_are_the_serial_ones(lam, with_density, cone):
     """F from 0 and rho from the self term, then every pair's terms in list order: near
     pairs from the front, the far ones (density only) from the back; with the field of
     vision the terms of i and j differ."""
@@ -167,22 +176,24 @@ def test_pair_forces_are_the_serial_ones(lam, with_density):
     cap = 100 * n
     pi, pj = np.full(cap, -1), np.full(cap, -1)
     nn, nf = S.build_pairs(x, n, start, order, nx, ny, 2.1, 1.4, pi, pj, np.zeros(n), 2.1,
-                           0.7, False)
+                           0.7, False, e, cone)
     args = (1.2, 2.1, rad, 2000.0, 0.08, 1.2e5, 2.4e5, 80.0, 0.7)
     F0, rho0 = np.full((n, 2), np.nan), np.full(n, 7.0)
-    S.pair_accel_list(x, v, n, pi, pj, nn, nf, *args, F0, rho0, with_density, rs, lam, e)
+    S.pair_accel_list(x, v, n, pi, pj, nn, nf, *args, F0, rho0, with_density, rs, lam, e,
+                      cone)
     assert np.abs(F0).max() > 1.0
     F1, rho1 = np.full((n, 2), np.nan), np.full(n, 7.0)
-    K.pair_accel_list(x, v, n, pi, pj, nn, nf, *args, F1, rho1, with_density, rs, lam, e)
+    K.pair_accel_list(x, v, n, pi, pj, nn, nf, *args, F1, rho1, with_density, rs, lam, e,
+                      cone)
     assert _same(F1, F0) and _same(rho1, rho0)
     for nblocks in (2, 3, 5, 8):
         lay, pos = K.pair_blocks(n, start, order, nx, ny, nblocks)
         pi2, pj2 = np.full(cap, -1), np.full(cap, -1)
         assert K.list_pairs(x, n, start, order, nx, ny, 2.1, 1.4, pi2, pj2, np.zeros(n), 2.1,
-                            0.7, False, lay, pos) == (nn, nf)
+                            0.7, False, lay, pos, e, cone) == (nn, nf)
         F2, rho2 = np.full((n, 2), np.nan), np.full(n, 7.0)
         K.pair_accel_blocks(x, v, n, pi2, pj2, nn, nf, lay, pos, start, *args, F2, rho2,
-                            with_density, rs, lam, e)
+                            with_density, rs, lam, e, cone)
         assert _same(F2, F0) and _same(rho2, rho0), nblocks
 
 
@@ -195,12 +206,13 @@ def _room(tmp_path):
 def test_steps_are_the_serial_ones(tmp_path, monkeypatch):
     """Whole steps (Runge-Kutta stages, walls, routes, settle) with the parallel kernels on
     2 threads and with the serial kernels give the same states, bit for bit, with the
-    validated preset's dense-crowd terms and a field of vision."""
+    validated preset's dense-crowd terms, a field of vision, a density cone and weaker walls."""
     import pedmesh
 
     def run(threads):
         sim = pedmesh.build(_room(tmp_path), model="sfm", preset="validated",
-                            params={"vision": 0.5, "threads": threads}).sim
+                            params={"vision": 0.5, "threads": threads, "density_cone": 2.0,
+                                    "wall_repulsion": 0.3}).sim
         assert sim.n_initial > 300
         for _ in range(150):
             sim.step()

@@ -66,9 +66,10 @@ class SFMRun:
             if n is None or n == sum(counts):
                 population = draw_population(src, counts, seed=0 if seed is None else seed)
         self.population = population
-        self.sim = Simulation(self._walking_mesh(room, mesh), positions, params=self.params,
-                              numerics=self.numerics, reroute=not static_routes,
-                              population=population, seed=seed)
+        walk = self._walking_mesh(room, mesh)
+        self.sim = Simulation(walk, positions, params=self.params, numerics=self.numerics,
+                              reroute=not static_routes, population=population, seed=seed,
+                              own_mesh=walk is not mesh)
         self.mesh = mesh
         room = room if room is not None else mesh.room
         self._finish_init(static_routes, rate, room.walkable.wkt if room is not None else None)
@@ -87,7 +88,8 @@ class SFMRun:
 
         kernel = self.params.route_kernel if self.params.route_kernel is not None \
             else self.params.R
-        self.route_mesh = route_mesh(site, resolution=res, kernel=kernel)
+        self.route_mesh = route_mesh(site, resolution=res, kernel=kernel,
+                                     clearance=self.params.route_clearance)
         return self.route_mesh
 
     def _check_rate(self, rate: float) -> None:

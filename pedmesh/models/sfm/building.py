@@ -160,7 +160,12 @@ class SurfaceSimulation(Simulation):
             rho_atlas = self.route_density()
             rho_v = np.zeros(a.surface.n_points)
             np.maximum.at(rho_v, a.to_surface, rho_atlas)  # (the denser copy of a hinge vertex)
-            phi_s, field_, factors = self._solver.solve(self.params.speed.route_cost(rho_v))
+            cost = self.params.speed.route_cost(rho_v)
+            if self._route_wall is not None:  # (the denser copy's is the nearer wall's)
+                wall = np.ones(a.surface.n_points)
+                np.maximum.at(wall, a.to_surface, self._route_wall)
+                cost = cost * wall
+            phi_s, field_, factors = self._solver.solve(cost)
             self.phi = phi_s[a.to_surface]
             self.surface_phi = phi_s
             self._dpack = scale_packed(field_.packed, factors)
@@ -318,7 +323,7 @@ class BuildingSFMRun(SFMRun):
         self.population = None
         self.sim = SurfaceSimulation(self.atlas, x, params=self.params,
                                      numerics=self.numerics, reroute=not static_routes,
-                                     seed=seed)
+                                     seed=seed, own_mesh=walk is not mesh)
         self.mesh = mesh
         self._finish_init(static_routes, trajectory_rate, None)
         self._piece_names = [p.name for p in mesh.pieces]

@@ -8,8 +8,49 @@ from __future__ import annotations
 import math
 
 import numba as nb
+import numpy as np
 
-__all__ = ["pair_force", "pair_terms"]
+__all__ = ["pair_force", "pair_terms", "cone_norm", "cone_weights", "NO_CONE"]
+
+#: the kernel density's (exponent, normalisation) without a cone: every neighbour counts
+#: fully (the paper's eq3)
+NO_CONE = np.array([0.0, 1.0])
+
+
+def cone_norm(p: float) -> float:
+    """The normalisation of the density cone of exponent ``p`` > 0: 1 / mean over all
+    directions of max(0, cos)^p, so that a uniform crowd reads its density;
+    2 sqrt(pi) Gamma(p/2 + 1) / Gamma((p + 1) / 2) (pi for p = 1, 4 for p = 2)."""
+    return 2.0 * math.sqrt(math.pi) * math.gamma(0.5 * p + 1.0) / math.gamma(0.5 * (p + 1.0))
+
+
+@nb.njit(cache=True, inline="always")
+def _cone(c, p, norm):
+    if c <= 0.0:
+        return 0.0
+    if p == 2.0:
+        return norm * c * c
+    if p == 1.0:
+        return norm * c
+    return norm * c ** p
+
+
+@nb.njit(cache=True, inline="always")
+def cone_weights(dx, dy, d2, cone, eix, eiy, ejx, ejy):
+    """The weights of a pair's kernel term in i's and j's densities: ``dx, dy`` = x_i -
+    x_j at squared distance ``d2``, ``cone`` = (p, norm) of the density cone. With p > 0
+    one's neighbour counts ``norm max(0, cos)^p`` times, cos the cosine between one's
+    desired direction (``eix, eiy``; ``ejx, ejy``) and the neighbour: the people ahead
+    count, those behind do not (a pedestrian adapts the speed to the space in front);
+    with p = 0 both are 1 (the isotropic kernel, bit for bit)."""
+    p = cone[0]
+    if p <= 0.0:
+        return 1.0, 1.0
+    if d2 <= 0.0:  # (on top of each other: the mean weight)
+        return 1.0, 1.0
+    d = math.sqrt(d2)
+    return (_cone(-(dx * eix + dy * eiy) / d, p, cone[1]),
+            _cone((dx * ejx + dy * ejy) / d, p, cone[1]))
 
 
 @nb.njit(cache=True, inline="always")

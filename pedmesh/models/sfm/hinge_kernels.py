@@ -16,7 +16,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .forces import pair_terms
+from .forces import cone_weights, pair_terms
 
 __all__ = ["hinge_pairs", "hinge_accel", "hinge_density"]
 
@@ -79,8 +79,10 @@ def hinge_pairs(x, n, tri, piece, hseg, hfrom, hto, hshift, rc, cell_start, cell
 
 
 @nb.njit(cache=True)
-def hinge_density(x, nh, hi, hj, hs, rc_d, R, rho):
-    """Add the Gaussian kernel weights of the pairs across stair edges to ``rho``."""
+def hinge_density(x, nh, hi, hj, hs, rc_d, R, rho, e, cone):
+    """Add the Gaussian kernel weights of the pairs across stair edges to ``rho`` (with the
+    density cone ``cone`` of the directions ``e``,
+    :func:`~pedmesh.models.sfm.forces.cone_weights`)."""
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
     rd2 = rc_d * rc_d
@@ -91,13 +93,14 @@ def hinge_density(x, nh, hi, hj, hs, rc_d, R, rho):
         d2 = dx * dx + dy * dy
         if d2 < rd2:
             w = w0 * math.exp(-d2 * invR2)
-            rho[i] += w
-            rho[j] += w
+            wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1], e[j, 0], e[j, 1])
+            rho[i] += w * wi
+            rho[j] += w * wj
 
 
 @nb.njit(cache=True)
 def hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
-                with_density, rs, lam, e):
+                with_density, rs, lam, e, cone):
     """Add the accelerations of the pairs across stair edges to ``F`` (and, with
     ``with_density``, their kernel weights to ``rho``), as
     :func:`~pedmesh.models.sfm.kernels.pair_accel_list` does for the other pairs (the same
@@ -106,7 +109,7 @@ def hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, 
     inv_m = 1.0 / m
     rc_f2 = rc_f * rc_f
     if with_density:
-        hinge_density(x, nh, hi, hj, hs, rc_d, R, rho)
+        hinge_density(x, nh, hi, hj, hs, rc_d, R, rho, e, cone)
     for p in range(nh):
         i, j = hi[p], hj[p]
         dx = x[i, 0] + hs[p, 0] - x[j, 0]

@@ -35,7 +35,7 @@ ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 from ...eikonal.direction import _inside_packed, _interpolate  # noqa: E402
 from ...speed import shape  # noqa: E402
 from .crowding import crowd_factor_at  # noqa: E402
-from .forces import pair_force, pair_terms  # noqa: E402
+from .forces import NO_CONE, cone_weights, pair_force, pair_terms  # noqa: E402
 from .hinge_kernels import hinge_accel, hinge_density  # noqa: E402
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
@@ -180,7 +180,7 @@ def _block_of(lay, c):
 
 @nb.njit(parallel=True, cache=True)
 def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
-               with_density, lay, pos):
+               with_density, lay, pos, e, cone):
     """:func:`build_pairs` on threads, one block of cells (:func:`pair_blocks`) each.
 
     Block b searches its own cells in the serial order and stores its pairs in its share
@@ -198,7 +198,8 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
     block b's), ``lay[b, 3]`` (the first near pair of its halo), ``lay[b, 4]`` (the far
     pairs before those of its halo). ``pos``: from :func:`pair_blocks`. Returns ``(n_near,
     n_far)``, or ``(-1, -1)`` if the list, or a block's share of ``pi``/``pj``, is too
-    small.
+    small. ``e``, ``cone``: the desired directions and the density cone
+    (:func:`~pedmesh.models.sfm.forces.cone_weights`; ``NO_CONE``: the isotropic kernel).
     """
     rc2 = rc * rc
     rn2 = rc_near * rc_near
@@ -242,7 +243,9 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
                             dy = yi - x[j, 1]
                             d2 = dx * dx + dy * dy
                             if d2 < rd2:
-                                acc[b2 if many else j] += w0 * math.exp(-d2 * invR2)
+                                _, wj = cone_weights(dx, dy, d2, cone, 0.0, 0.0, e[j, 0],
+                                                     e[j, 1])
+                                acc[b2 if many else j] += w0 * math.exp(-d2 * invR2) * wj
         m_near = 0
         m_far = 0
         for c in range(c0, c1):
@@ -273,9 +276,11 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
                         d2 = dx * dx + dy * dy
                         if with_density and d2 < rd2:
                             w = w0 * math.exp(-d2 * invR2)
-                            rhoi += w
+                            wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1],
+                                                  e[j, 0], e[j, 1])
+                            rhoi += w * wi
                             if mine:
-                                acc[b2 if many else j] += w
+                                acc[b2 if many else j] += w * wj
                         if d2 < rn2:
                             if m_near + m_far < size:
                                 pi[lo + m_near] = i
@@ -345,7 +350,7 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
 
 
 def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
-                with_density):
+                with_density, e=None, cone=None):
     """All pairs closer than ``rc``, each once (i from the lower cell), split in two groups:
     the *near* pairs (closer than ``rc_near``) fill ``pi``/``pj`` from the front, the *far*
     ones from the back. Returns ``(n_near, n_far)``, or ``(-1, -1)`` if ``pi``/``pj`` are
@@ -364,13 +369,14 @@ def build_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, 
     same list and densities on any number.
     """
     lay, pos = pair_blocks(n, cell_start, cell_order, nx, ny, nb.get_num_threads())
+    if e is None:  # (the isotropic kernel)
+        e, cone = np.zeros((max(n, 1), 2)), NO_CONE
     return list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d,
-                      R, with_density, lay, pos)
+                      R, with_density, lay, pos, e, cone)
 
 
-@nb.njit(cache=True)
 def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, kappa, m, R, F,
-                    rho, with_density, rs, lam, e):
+                    rho, with_density, rs, lam, e, cone=None):
     """Pair accelerations (into ``F``, zeroed first) and Gaussian kernel densities over a
     pair list from :func:`build_pairs` (a superset of the pairs in range).
 
@@ -392,13 +398,15 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
     lay[1, 1] = n_near
     lay[1, 2] = n_far
     one_cell = np.array([0, n], np.int64)
+    cone = NO_CONE if cone is None else cone
     pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, np.empty(0, np.int64), one_cell,
-                      rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e)
+                      rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e,
+                      cone)
 
 
 @nb.njit(parallel=True, cache=True)
 def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f, rc_d, rad,
-                      A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e):
+                      A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e, cone):
     """:func:`pair_accel_list` on threads, over a list from :func:`list_pairs` (``lay``,
     ``pos``, and the cells ``cell_start`` it was made from): block b starts its own
     pedestrians' sums (F from 0, rho from the self term), goes through its halo's pairs
@@ -443,10 +451,11 @@ def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f
             d2 = dx * dx + dy * dy
             if with_density and d2 < rc_d2:
                 w = w0 * math.exp(-d2 * invR2)
+                wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1], e[j, 0], e[j, 1])
                 if own_i:
-                    rp[ai] += w
+                    rp[ai] += w * wi
                 if own_j:
-                    rp[aj] += w
+                    rp[aj] += w * wj
             if d2 < rc_f2 and d2 > 0.0:
                 aix, aiy, ajx, ajy = pair_terms(
                     dx, dy, math.sqrt(d2), v[j, 0] - v[i, 0], v[j, 1] - v[i, 1],
@@ -475,10 +484,11 @@ def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f
             d2 = dx * dx + dy * dy
             if d2 < rc_d2:
                 w = w0 * math.exp(-d2 * invR2)
+                wi, wj = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1], e[j, 0], e[j, 1])
                 if own_i:
-                    rp[pos[i] if many else i] += w
+                    rp[pos[i] if many else i] += w * wi
                 if own_j:
-                    rp[aj] += w
+                    rp[aj] += w * wj
     if not many:
         return
     for i in nb.prange(n):
@@ -713,7 +723,10 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
     ``space[3]``, ``space[4]``: the crowding stretch and knee [ped/m^2] of
     :func:`crowd_density` (stretch 1: off), with the free-width map ``wmap`` and ``wgeo`` =
     (x0, y0, 1/cell, queue width, crowd width) (:mod:`pedmesh.models.sfm.crowding`; work arrays
-    ``cf``, ``ue``). ``lay``, ``pos``, ``cell_start``: the blocks of the pair list and the
+    ``cf``, ``ue``). ``space[5]``: the walls' social repulsion as a share of A (1: Helbing's,
+    0: walls push on contact only); ``space[6:8]``: the density cone (exponent, norm) of
+    :func:`~pedmesh.models.sfm.forces.cone_weights` (0: the isotropic kernel) with which
+    ``rho`` is evaluated here. ``lay``, ``pos``, ``cell_start``: the blocks of the pair list and the
     cells it was made from (:func:`list_pairs`). ``hinge``: the pairs across a
     building's stair edges (indices, shifts and their number;
     :mod:`pedmesh.models.sfm.hinge_kernels`; none in a room), added after the others.
@@ -744,12 +757,14 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
                 rs[i] = _social_radius(rad[i], ue[i], space[0], h, crowd, cf[i])
     if space[0] > 0.0:
         soc = rs
+    cone = space[6:8]
     pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f, rc_d, rad,
-                      A, B, k, kappa, m, R, F, rho, with_density, soc, space[2], e)
+                      A, B, k, kappa, m, R, F, rho, with_density, soc, space[2], e, cone)
     hi_, hj_, hs_, nh = hinge
     if nh > 0:
         hinge_accel(x, v, nh, hi_, hj_, hs_, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
-                    with_density, soc, space[2], e)
+                    with_density, soc, space[2], e, cone)
+    A_wall = A * space[5]
     rc2 = rc_w * rc_w
     invB = 1.0 / B
     inv_m = 1.0 / m
@@ -761,7 +776,7 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
         hi = min(lo + CHUNK, n)
         for i in range(lo, hi):
             _wall_one(i, x, v, piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc2,
-                      rad, A, invB, k, kappa, inv_m, F, soc)
+                      rad, A_wall, invB, k, kappa, inv_m, F, soc)
             if use_const:
                 F[i, 0] += (const_u[0] - v[i, 0]) * inv_tau
                 F[i, 1] += (const_u[1] - v[i, 1]) * inv_tau
@@ -905,12 +920,13 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     rc_list = max(rc_f + skin, rc_d + skin) if every else rc_f + skin
     build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
     lay, pos = pair_blocks(n, cell_start, cell_order, cnx, cny, nblocks)
+    cone = space[6:8]
     n_near, n_far = list_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,
-                               pi, pj, rho, rc_d, R, not every, lay, pos)
+                               pi, pj, rho, rc_d, R, not every, lay, pos, e, cone)
     if n_near < 0:
         return -1
     if hinge[3] > 0 and not every:  # the densities across a building's stair edges
-        hinge_density(x, hinge[3], hinge[0], hinge[1], hinge[2], rc_d, R, rho)
+        hinge_density(x, hinge[3], hinge[0], hinge[1], hinge[2], rc_d, R, rho, e, cone)
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,
@@ -924,7 +940,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
     n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
         x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
-        rho, n_near, n_far, False, lay, pos)
+        rho, n_near, n_far, False, lay, pos, e, cone)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
@@ -940,7 +956,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     # stage 3: u_new = 1/3 u + 2/3 (u2 + dt L(u2)); a list rebuilt for stage 2 has no skin
     n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
         x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
-        rho, n_near, n_far, rebuilt, lay, pos)
+        rho, n_near, n_far, rebuilt, lay, pos, e, cone)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
@@ -956,7 +972,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
 
 @nb.njit(cache=True)
 def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d,
-                   R, pi, pj, rho, n_near, n_far, force, lay, pos):
+                   R, pi, pj, rho, n_near, n_far, force, lay, pos, e, cone):
     """Keep the pair list (built with skin at ``x0``; its blocks ``lay``, ``pos``) if
     nobody moved more than skin/2 since, else (or if ``force``) rebuild it for the positions
     ``x`` without skin, valid for this stage only. Returns ``(n_near, n_far, rebuilt, lay,
@@ -970,7 +986,7 @@ def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, 
             lay, pos = pair_blocks(n, cell_start, cell_order, cnx, cny, lay.shape[0] - 1)
             n_near, n_far = list_pairs(x, n, cell_start, cell_order, cnx, cny,
                                        max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False, lay,
-                                       pos)
+                                       pos, e, cone)
             return n_near, n_far, True, lay, pos
     return n_near, n_far, False, lay, pos
 

@@ -40,11 +40,14 @@ class SocialForceParams:
     shrink: float = P.field("shrink")
     t_space: float = P.field("t_space")
     vision: float = P.field("vision")
+    density_cone: float = P.field("density_cone")
+    wall_repulsion: float = P.field("wall_repulsion")
     crowd_stretch: float = P.field("crowd_stretch")
     crowd_knee: float = P.field("crowd_knee")
     queue_width: float = P.field("queue_width")
     crowd_width: float = P.field("crowd_width")
     route_kernel: float | None = P.field("route_kernel")
+    route_clearance: float = P.field("route_clearance")
 
     def __post_init__(self) -> None:
         P.check_fields(self)

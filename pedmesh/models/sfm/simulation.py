@@ -99,6 +99,12 @@ class Simulation:
         the free spot farthest from everyone, once their time has come and there is room;
         those of one area in the order of their times). Default: everyone alike, in the
         room from the start.
+    own_mesh
+        The mesh is the model's own route mesh (:mod:`pedmesh.mesh.route_mesh`), fine at
+        doors and walls: each straight wall piece is one wall segment
+        (:meth:`WallSet.from_mesh`, the same forces), and at every route solve the crowd's
+        rows are put in the order of their triangles (the mesh's space-filling order), so
+        that the kernels read the large mesh tables from nearby memory.
     seed
         With a seed, each entering person's spot is moved by a uniform random offset of
         up to ``ENTRANCE_GAP / 2`` in x and y (so that seeds give different realisations
@@ -121,7 +127,8 @@ class Simulation:
                  params: SocialForceParams | None = None,
                  numerics: SFMNumerics | None = None,
                  desired_velocity: np.ndarray | None = None,
-                 reroute: bool = True, population=None, seed: int | None = None) -> None:
+                 reroute: bool = True, population=None, seed: int | None = None,
+                 own_mesh: bool = False) -> None:
         self.mesh = mesh
         self._rng = None if seed is None else np.random.default_rng(seed)
         self.params = params or SocialForceParams()
@@ -139,10 +146,15 @@ class Simulation:
         self._allocate_work(N)
         self._set_cutoffs()
         self._set_neighbour_grid(N)
-        self.walls = WallSet.from_mesh(mesh, self.rc_w)
+        #: the mesh is the model's own route mesh (not the run's): its walls merged into
+        #: straight pieces, the crowd's rows kept in the mesh's order (see _sort_rows)
+        self.own_mesh = bool(own_mesh)
+        self.walls = WallSet.from_mesh(mesh, self.rc_w, merge=self.own_mesh)
         self._set_space_requirement(N)
         self._law = self.params.kernel_law()  # the desired-speed law (pedmesh.speed)
         self._set_routes(reroute, desired_velocity)
+        if self.params.density_cone > 0 and self.n:  # the cone looks along the route
+            self._e[: self.n] = self._directions(0, self.n)
         from .hinge_kernels import empty_pairs
 
         #: the pairs across a building's stair edges (none in a room)
@@ -263,7 +275,11 @@ class Simulation:
         free-width map it reads (see :meth:`_set_width_map`); ``shrink`` must stay below
         every body radius."""
         p = self.params
-        self._space = np.array([p.shrink, p.t_space, p.vision, p.crowd_stretch, p.crowd_knee],
+        from .forces import cone_norm
+
+        cone = float(p.density_cone)
+        self._space = np.array([p.shrink, p.t_space, p.vision, p.crowd_stretch, p.crowd_knee,
+                                p.wall_repulsion, cone, cone_norm(cone) if cone > 0 else 1.0],
                                np.float64)
         self._rs = np.empty(N)
         self._cf = np.zeros(N)
@@ -455,6 +471,18 @@ class Simulation:
                 self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
                 self.n_waiting -= 1
 
+    def _sort_rows(self) -> None:
+        """Put the rows of the pedestrians inside in the order of their triangles (stable),
+        every per-pedestrian array alike (those :func:`~pedmesh.models.sfm.kernels.compact`
+        moves)."""
+        n = self.n
+        if n < 2:
+            return
+        order = np.argsort(self.tri[:n], kind="stable")
+        for a in (self.x, self.v, self._e, self.rad, self.u0, self._u_eff, self.tpre, self.toff,
+                  self.ids, self.tri, self.rho):
+            a[:n] = a[:n][order]
+
     def _directions(self, lo: int, hi: int) -> np.ndarray:
         """(hi - lo, 2) desired directions of rows ``lo:hi`` (each towards their own exits:
         a route group's rows of the steering table are the triangle plus its offset)."""
@@ -493,7 +521,14 @@ class Simulation:
         return out
 
     def _set_route_density(self) -> None:
-        """The grid of the route's crowd density (``route_kernel`` set), else None."""
+        """The grid of the route's crowd density (``route_kernel`` set), else None; and the
+        factor of the route cost at the vertices near walls (``route_clearance`` set, else
+        None)."""
+        from .walls import clearance_factor
+
+        self._route_wall = None
+        if self.params.route_clearance > 0 and not self._use_const:
+            self._route_wall = clearance_factor(self.mesh, self.params.route_clearance)
         self._route_grid = None
         if self.params.route_kernel is not None and not self._use_const:
             from ...analysis.fields import GridKernelDensity
@@ -518,6 +553,8 @@ class Simulation:
         if self.reroute or self.steps == 0:
             rho_v = self.route_density()
             cost = self.params.speed.route_cost(rho_v)
+            if self._route_wall is not None:
+                cost = cost * self._route_wall
             self.phi = self._solver.solve(cost)
             field_ = DirectionField(self.mesh, self.phi)
             if len(self._targets) == 1:
@@ -607,6 +644,8 @@ class Simulation:
             return 0
         if not self._use_const and self.steps > 0 and self.t >= self._next_route - 1e-9:
             self._route()
+            if self.own_mesh:
+                self._sort_rows()
         n, dt, mesh = self.n, nm.dt, self.mesh
         if self._premovement:  # no desired speed before one's premovement time
             np.copyto(self._u_eff[:n], np.where(self.tpre[:n] <= self.t, self.u0[:n], 0.0))

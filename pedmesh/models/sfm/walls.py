@@ -15,7 +15,7 @@ import numpy as np
 
 from ...mesh.triangle_mesh import BoundaryKind, TriMesh
 
-__all__ = ["WallSet"]
+__all__ = ["WallSet", "clearance_factor", "ROUTE_WALL_COST"]
 
 
 @dataclass(frozen=True)
@@ -54,8 +54,11 @@ class WallSet:
     cell_seg: np.ndarray
 
     @classmethod
-    def from_mesh(cls, mesh: TriMesh, cutoff: float) -> "WallSet":
-        """Wall segments of ``mesh`` with a grid for a wall force cut-off ``cutoff`` [m]."""
+    def from_mesh(cls, mesh: TriMesh, cutoff: float, *, merge: bool = False) -> "WallSet":
+        """Wall segments of ``mesh`` with a grid for a wall force cut-off ``cutoff`` [m].
+        ``merge``: each straight wall piece one segment (the same forces, far fewer
+        segments to go through on a fine mesh: the social force model's route mesh; the
+        forces of several pieces may then be added in another order)."""
         b = mesh.boundary_edges
         e = mesh.edges[b]
         n_out = mesh.edge_normals[b]
@@ -82,6 +85,8 @@ class WallSet:
         p1 = np.ascontiguousarray(mesh.points[c])
         prev_seg = seg_of_end[ka]  # the segment ending where this one starts (-1: exit)
         next_seg = seg_of_start[kc]
+        if merge:
+            p0, p1, prev_seg, next_seg = _merged(p0, p1, prev_seg, next_seg)
         piece = _pieces(p0, p1, prev_seg, next_seg)
         # grid
         lo = mesh.points.min(axis=0) - cutoff
@@ -128,6 +133,45 @@ def _collinear(p0, p1, s, t) -> bool:
     return abs(cross) <= 1e-9 * np.hypot(*ds) * np.hypot(*dt) and float(ds @ dt) > 0
 
 
+def _runs(p0, p1, prev_seg, next_seg) -> list[list[int]]:
+    """The maximal runs of collinear segments (the straight wall pieces), each in boundary
+    order."""
+    w = len(p0)
+    starts = [s for s in range(w) if prev_seg[s] < 0 or not _collinear(p0, p1, prev_seg[s], s)]
+    start_set = set(starts)
+    taken = np.zeros(w, bool)
+    runs = []
+    for s0 in starts:
+        run = [s0]
+        taken[s0] = True
+        while next_seg[run[-1]] >= 0 and next_seg[run[-1]] != s0 and \
+                _collinear(p0, p1, run[-1], next_seg[run[-1]]) and \
+                not taken[next_seg[run[-1]]] and next_seg[run[-1]] not in start_set:
+            run.append(next_seg[run[-1]])
+            taken[run[-1]] = True
+        runs.append(run)
+    return runs
+
+
+def _merged(p0, p1, prev_seg, next_seg):
+    """Each straight run of segments as one segment: (p0, p1, prev_seg, next_seg) of the
+    merged set (a closed ring without a corner, impossible for a polygon, is left as it
+    is)."""
+    runs = _runs(p0, p1, prev_seg, next_seg)
+    if sum(len(r) for r in runs) != len(p0):
+        return p0, p1, prev_seg, next_seg
+    of = np.full(len(p0), -1, np.int64)
+    for k, run in enumerate(runs):
+        of[run] = k
+    first = np.array([r[0] for r in runs], np.int64)
+    last = np.array([r[-1] for r in runs], np.int64)
+    q0 = np.ascontiguousarray(p0[first])
+    q1 = np.ascontiguousarray(p1[last])
+    prev_m = np.where(prev_seg[first] >= 0, of[np.maximum(prev_seg[first], 0)], -1)
+    next_m = np.where(next_seg[last] >= 0, of[np.maximum(next_seg[last], 0)], -1)
+    return q0, q1, prev_m.astype(np.int64), next_m.astype(np.int64)
+
+
 def _pieces(p0, p1, prev_seg, next_seg) -> np.ndarray:
     w = len(p0)
     out = np.full((w, 10), np.nan)
@@ -161,3 +205,25 @@ def _pieces(p0, p1, prev_seg, next_seg) -> np.ndarray:
             for s in run:
                 out[s, 6:10] = out[q, 0:4]
     return np.ascontiguousarray(out)
+
+
+#: the route cost's factor on a wall with ``route_clearance`` (1 + ROUTE_WALL_COST at d = 0)
+ROUTE_WALL_COST = 3.0
+
+
+def clearance_factor(mesh: TriMesh, clearance: float) -> np.ndarray:
+    """(n,) the route cost's factor at the mesh's vertices with the clearance ``clearance``
+    [m] (the parameter ``route_clearance``): ``1 + 3 (1 - d / clearance)^2`` within
+    ``clearance`` of the nearest wall or obstacle edge (``d`` [m] the distance to it), 1
+    beyond; exits do not count. The factor is a smooth bump of width ``clearance``, which the
+    route mesh resolves (:mod:`pedmesh.mesh.route_mesh` grades it along the walls)."""
+    import shapely
+
+    walls = mesh.edges[mesh.wall_edges()]
+    if len(walls) == 0:
+        return np.ones(mesh.n_points)
+    tree = shapely.STRtree(shapely.linestrings(mesh.points[walls]))
+    (_, _), d = tree.query_nearest(shapely.points(mesh.points), return_distance=True,
+                                   all_matches=False)
+    s = np.clip(1.0 - np.asarray(d, float) / float(clearance), 0.0, 1.0)
+    return 1.0 + ROUTE_WALL_COST * s * s
