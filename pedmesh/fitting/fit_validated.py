@@ -202,6 +202,38 @@ LAWS: dict[str, dict[str, Any]] = {
         "widths": (0.5, 0.6, 0.8, 1.0, 1.2, 1.8, 2.5),
         "front": True,
     },
+    # issue 44: the converged model (routes on their own mesh, reading the crowd on 2 m,
+    # keeping 0.5 m off walls; the desired speed from the crowd ahead; walls that push on
+    # contact only), its table and dense-crowd terms fitted anew, with the doors in a thin
+    # wall among the targets
+    "converged": {
+        "fixed": {"speed_law": "table", "density_self": 0, "U_f": 1.34, "tau": 0.3062,
+                  "A": 962.0, "t_space": 0.15, "crowd_width": 2.3, "route_kernel": 2.0,
+                  "route_resolution": 0.1, "route_clearance": 0.5, "density_cone": 2.0,
+                  "wall_repulsion": 0.0},
+        "fit": {
+            "g03": {"rho": 0.3, "bounds": (0.8, 1.0), "decimals": 3, "grid": (0.99,),
+                    "step": 0.02},
+            "g06": {"rho": 0.6, "bounds": (0.5, 1.0), "decimals": 3, "grid": (0.95,),
+                    "step": 0.04},
+            "g15": {"rho": 1.5, "bounds": (0.3, 0.95), "decimals": 3, "grid": (0.70, 0.76)},
+            "g27": {"rho": 2.7, "bounds": (0.1, 0.7), "decimals": 3, "grid": (0.38, 0.44)},
+            "shrink": {"bounds": (0.0, 0.12), "decimals": 3, "grid": (0.063,), "step": 0.015},
+            "crowd_stretch": {"bounds": (1.0, 6.0), "decimals": 3, "grid": (3.312,),
+                              "step": 0.5},
+            "queue_width": {"bounds": (1.2, 2.2), "decimals": 3, "grid": (1.737,),
+                            "step": 0.1},
+            "crowd_knee": {"bounds": (2.0, 4.5), "decimals": 3, "grid": (3.138,), "step": 0.3},
+        },
+        "seeds": (1, 2),
+        "csv": "fit_evaluations_converged.csv",
+        "carried": ("tau", "A"),
+        "entrances": ("replay", "door"),
+        "widths": (0.5, 0.6, 0.8, 1.0, 1.2, 1.8, 2.5),
+        "door_widths": (0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.6),
+        "front": True,
+        "front_min": 6.0,
+    },
 }
 #: [ped/m^2] where the table law reaches 0
 TABLE_ZERO = 5.6
@@ -225,6 +257,8 @@ TOL_FRONT = 0.10
 CORRIDOR_RUNS = ("uo-070-180-180", "uo-100-180-180", "uo-145-180-180", "uo-180-180-180",
                  "uo-180-180-095")
 WIDTHS: tuple = LAWS[LAW].get("widths", (0.8, 1.2, 1.8, 2.5))  # [m]
+#: [m] the doors in a thin wall (pedmesh.fitting.validate's "walldoor" part), if the law has
+DOOR_WIDTHS: tuple = LAWS[LAW].get("door_widths", ())
 FRONT: bool = LAWS[LAW].get("front", False)
 FD_RHOS = (1.0, 2.0, 3.0)  # [1/m^2]
 BOTTLENECK_REF = 1.9  # [1/(m s)]
@@ -245,6 +279,8 @@ def _fixed_key() -> str:
     if ENTRANCES != (ENTRANCE,):
         key["entrances"] = list(ENTRANCES)
         key["widths"] = list(WIDTHS)
+    if DOOR_WIDTHS:
+        key["door_widths"] = list(DOOR_WIDTHS)
     if SEEDS != (None,):
         key["seeds"] = list(SEEDS)
     return json.dumps(key, sort_keys=True)
@@ -275,6 +311,12 @@ def _columns() -> list[str]:
     if FRONT:
         sim += [f"rho_front/b={b:g}" for b in WIDTHS] + [f"stuck/b={b:g}" for b in WIDTHS]
         err += [f"err/front/b={b:g}" for b in FRONT_WIDTHS]
+    if DOOR_WIDTHS:
+        sim += ([f"Jw_sim/b={b:g}" for b in DOOR_WIDTHS]
+                + [f"rho_front_w/b={b:g}" for b in DOOR_WIDTHS]
+                + [f"stuck_w/b={b:g}" for b in DOOR_WIDTHS])
+        err += ([f"err/walldoor/b={b:g}" for b in DOOR_WIDTHS]
+                + [f"err/front_w/b={b:g}" for b in FRONT_WIDTHS if b in DOOR_WIDTHS])
     return (["eval", "phase", *NAMES, "objective", "failed", "clogged", "seconds", "rms_all",
              "date", "fixed"] + sim + err + ref)
 
@@ -285,24 +327,28 @@ COLUMNS = _columns()
 def configure(law: str) -> None:
     """Make ``law`` (a key of :data:`LAWS`) the fit this process runs."""
     global LAW, FIXED, FIT, SEEDS, NAMES, FIXED_KEY, COLUMNS, ENTRANCES, WIDTHS, FRONT
+    global DOOR_WIDTHS, FRONT_MIN
     if law not in LAWS:
         raise SystemExit(f"unknown law {law!r} (laws: {', '.join(LAWS)})")
     LAW, FIXED, FIT, SEEDS = law, LAWS[law]["fixed"], LAWS[law]["fit"], LAWS[law]["seeds"]
     ENTRANCES = LAWS[law].get("entrances", (ENTRANCE,))
     WIDTHS = LAWS[law].get("widths", (0.8, 1.2, 1.8, 2.5))
+    DOOR_WIDTHS = LAWS[law].get("door_widths", ())
     FRONT = LAWS[law].get("front", False)
+    FRONT_MIN = LAWS[law].get("front_min", 5.5)
     NAMES = tuple(FIT)
     FIXED_KEY = _fixed_key()
     COLUMNS = _columns()
 
 
-def band_error(jb: float, b: float) -> float:
+def band_error(jb: float, b: float, opening: str | None = None) -> float:
     """How far a specific flow ``jb`` [1/(m s)] is outside the published band at width
-    ``b`` [m] (:func:`pedmesh.validation.published_band`), relative to the nearer edge: 0
-    inside, negative below, positive above (nan if ``jb`` is)."""
+    ``b`` [m] (:func:`pedmesh.validation.published_band`; ``opening``: of those series
+    only), relative to the nearer edge: 0 inside, negative below, positive above (nan if
+    ``jb`` is)."""
     from pedmesh.validation import published_band
 
-    lo, hi, _ = published_band(b)
+    lo, hi, _ = published_band(b, opening)
     if not math.isfinite(jb):
         return math.nan
     return jb / lo - 1.0 if jb < lo else (jb / hi - 1.0 if jb > hi else 0.0)
@@ -332,9 +378,12 @@ def model_parameters(x: dict[str, float]) -> dict[str, Any]:
     """The model parameters (``--param`` overrides) of the point ``x``: the fixed ones,
     then the fitted ones (for the table law: the ``speed_table`` they make)."""
     x = rounded(x)
-    if LAW == "table":
-        return {**FIXED, "speed_table": speed_table(x)}
-    return {**FIXED, **x}  # (the crowd law: the table is among the fixed values)
+    knots = LAWS["table"]["fit"]
+    g = {n: v for n, v in x.items() if n in knots}
+    out = {**FIXED, **{n: v for n, v in x.items() if n not in knots}}
+    if g:  # (the table and converged laws; the crowd law has its table among the fixed)
+        out["speed_table"] = speed_table(g)
+    return out
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -365,13 +414,14 @@ def evaluate(x: dict[str, float], data_dir: str | None = None,
     rec: dict[str, Any] = dict(x)
     failed = clogged = 0
     rms = []
+    parts = PARTS + (("walldoor",) if DOOR_WIDTHS else ())
     for k, ent in enumerate(ENTRANCES):
         t = _suffix(ent)
         res = run_validation(model_parameters(x), PRESET,
-                             parts=PARTS if k == 0 else ("corridor",), data_dir=data_dir,
+                             parts=parts if k == 0 else ("corridor",), data_dir=data_dir,
                              out_dir=None if keep_dir is None else Path(keep_dir) / ent,
                              fd_frames="all", entrance=ent, seeds=(seed,), widths=WIDTHS,
-                             log=lambda *a, **k: None)
+                             door_widths=DOOR_WIDTHS or (1.0,), log=lambda *a, **k: None)
         rms.append(res["errors"]["rms"])
         rows = {r["run"]: r for r in res["corridor"]["rows"]}
         for name in CORRIDOR_RUNS:
@@ -395,6 +445,14 @@ def evaluate(x: dict[str, float], data_dir: str | None = None,
             rec[f"Jb_sim/b={b:g}"] = row["J_per_b"]
             rec[f"rho_front/b={b:g}"] = row.get("front_density", math.nan)
             rec[f"stuck/b={b:g}"] = row.get("stuck", 0)
+        for row in res.get("walldoor") or []:
+            b = row["width_m"]
+            failed += row["error"] is not None
+            clogged += row["error"] is None and (row["status"] != "finished"
+                                                 or row.get("stuck", 0) > 0)
+            rec[f"Jw_sim/b={b:g}"] = row["J_per_b"]
+            rec[f"rho_front_w/b={b:g}"] = row.get("front_density", math.nan)
+            rec[f"stuck_w/b={b:g}"] = row.get("stuck", 0)
     rec["failed"], rec["clogged"] = failed, clogged
     rec["rms_all"] = float(np.mean(rms))
     rec["seconds"] = time.perf_counter() - t0
@@ -407,10 +465,10 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
     their counts), counts, failures and seconds summed; then the relative errors."""
     out = dict(recs[0])
     for k in list(out):
-        if k.startswith(("J_exit_sim", "Jb_sim/", "rho_front/")):
+        if k.startswith(("J_exit_sim", "Jb_sim/", "rho_front/", "Jw_sim/", "rho_front_w/")):
             out[k] = float(np.nanmean([float(r[k]) for r in recs])) if any(
                 math.isfinite(float(r[k])) for r in recs) else math.nan
-        elif k.startswith("stuck/"):
+        elif k.startswith(("stuck/", "stuck_w/")):
             out[k] = float(max(float(r[k]) for r in recs))
     for ent in ENTRANCES:
         t = _suffix(ent)
@@ -440,6 +498,10 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
     if FRONT:
         for b in FRONT_WIDTHS:
             out[f"err/front/b={b:g}"] = front_error(float(out[f"rho_front/b={b:g}"]))
+    for b in DOOR_WIDTHS:
+        out[f"err/walldoor/b={b:g}"] = band_error(out[f"Jw_sim/b={b:g}"], b, "short")
+        if b in FRONT_WIDTHS:
+            out[f"err/front_w/b={b:g}"] = front_error(float(out[f"rho_front_w/b={b:g}"]))
     return out
 
 
@@ -472,6 +534,12 @@ def objective(rec: dict[str, Any]) -> float:
     if FRONT:
         for b in FRONT_WIDTHS:
             e = float(rec[f"err/front/b={b:g}"])
+            f += (e / TOL_FRONT) ** 2 if math.isfinite(e) else 0.0
+    for b in DOOR_WIDTHS:
+        e = float(rec[f"err/walldoor/b={b:g}"])
+        f += (e / TOL_BAND) ** 2 if math.isfinite(e) else 0.0
+        if b in FRONT_WIDTHS:
+            e = float(rec[f"err/front_w/b={b:g}"])
             f += (e / TOL_FRONT) ** 2 if math.isfinite(e) else 0.0
     return f + PENALTY * (float(rec["failed"]) + float(rec["clogged"]))
 
@@ -610,7 +678,7 @@ def run_nelder_mead(log: Log, pool, max_evals: int, data_dir: str | None) -> Any
     for i, n in enumerate(NAMES):
         g = FIT[n]["grid"]
         lo, hi = FIT[n]["bounds"]
-        step = 0.5 * (g[1] - g[0]) / (hi - lo)
+        step = (FIT[n]["step"] if "step" in FIT[n] else 0.5 * (g[1] - g[0])) / (hi - lo)
         z = z0.copy()
         z[i] = z0[i] + step if z0[i] + step <= 1.0 else z0[i] - step
         simplex.append(z)
@@ -712,6 +780,34 @@ def targets(rec: dict[str, Any], free: dict[str, Any] | None) -> list[dict[str, 
                         "target": f"bottleneck b = {b:g} m: people left inside at the end",
                         "sim": stuck, "ref": 0.0, "err": math.nan, "band": "0",
                         "pass": stuck == 0})
+    if DOOR_WIDTHS:
+        from pedmesh.fitting.validate import WALL_THICKNESS
+        from pedmesh.validation import published_band
+
+        for b in DOOR_WIDTHS:
+            lo, hi, npub = published_band(b, "short")
+            e = float(rec[f"err/walldoor/b={b:g}"])
+            out.append({"key": f"walldoor/b={b:g}",
+                        "target": f"door in a {WALL_THICKNESS:g} m wall b = {b:g} m: J/b "
+                                  f"[1/(m s)] (published doors and short openings, {npub} "
+                                  "points)", "sim": float(rec[f"Jw_sim/b={b:g}"]),
+                        "ref": 0.5 * (lo + hi), "err": e, "band": f"{lo:.2f}-{hi:.2f}",
+                        "pass": math.isfinite(e) and e == 0.0})
+        for b in DOOR_WIDTHS:
+            if b not in FRONT_WIDTHS:
+                continue
+            e = float(rec[f"err/front_w/b={b:g}"])
+            out.append({"key": f"front_w/b={b:g}",
+                        "target": f"door in a wall b = {b:g} m: Voronoi density in front "
+                                  "[1/m^2]", "sim": float(rec[f"rho_front_w/b={b:g}"]),
+                        "ref": FRONT_MIN, "err": e, "band": f"{FRONT_MIN:g}-{FRONT_MAX:g}",
+                        "pass": math.isfinite(e) and e == 0.0})
+        for b in DOOR_WIDTHS:
+            stuck = float(rec[f"stuck_w/b={b:g}"])
+            out.append({"key": f"stuck_w/b={b:g}",
+                        "target": f"door in a wall b = {b:g} m: people left inside at the end",
+                        "sim": stuck, "ref": 0.0, "err": math.nan, "band": "0",
+                        "pass": stuck == 0})
     if free is not None:
         out.append({"key": "free/speed", "target": "free walking speed [m/s] (fixed U_f, check)",
                     "sim": free["speed"], "ref": 1.34, "err": free["err"],
@@ -769,7 +865,7 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
     best = log.best()
     x = rounded(best)
     tg = targets(best, free)
-    errors = {t["key"]: t["err"] for t in tg if not t["key"].startswith("stuck/")}
+    errors = {t["key"]: t["err"] for t in tg if not t["key"].startswith(("stuck/", "stuck_w/"))}
     errors = {k: (round(float(v), 4) if math.isfinite(float(v)) else None)
               for k, v in errors.items()}
     grid = [r for r in log.order if r["phase"] == "grid"]
@@ -777,14 +873,19 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
     method = (
         f"Weighted least squares of relative errors (each over its tolerance: corridor exit "
         + ("flows 10 % with both entrances (door and replay), bottleneck J/b 10 % outside the "
-           "published band, densities in front of 0.5-1.2 m openings 10 % outside 5.5-9 "
-           "/m^2, Voronoi speeds at 1/2/3 /m^2 15 % with both entrances"
+           f"published band, densities in front of 0.5-1.2 m openings 10 % outside "
+           f"{FRONT_MIN:g}-{FRONT_MAX:g} /m^2, Voronoi speeds at 1/2/3 /m^2 15 % with both "
+           "entrances"
            if FRONT else "flows 10 %, bottleneck J/b 0.3/1.9, Voronoi speeds at 1/2/3 /m^2 "
            "15 %")
         + f"; +{PENALTY:g} per failed or clogged run), measured by "
         "pedmesh.fitting.validate.run_validation (corridor, entrance "
         f"{'+'.join(ENTRANCES)}, + bottleneck at "
-        f"{', '.join(f'{b:g}' for b in WIDTHS)} m, fd_frames=all). Coarse grid {len(grid)} "
+        f"{', '.join(f'{b:g}' for b in WIDTHS)} m"
+        + (f", + doors in a thin wall at {', '.join(f'{b:g}' for b in DOOR_WIDTHS)} m "
+           "(J/b 10 % outside the published doors' and short openings' band)"
+           if DOOR_WIDTHS else "")
+        + f", fd_frames=all). Coarse grid {len(grid)} "
         "points ("
         + ", ".join(f"{n} {FIT[n]['grid']}" for n in NAMES)
         + "), then bounded Nelder-Mead from the best grid point "
@@ -799,7 +900,10 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         "errors": errors,
         "targets": {t["key"]: {"sim": _r4(t["sim"]), "ref": _r4(t["ref"]), "band": t["band"],
                                "pass": bool(t["pass"])} for t in tg},
-        "fitted": ["speed_table"] if LAW == "table" else list(NAMES),
+        "fitted": (["speed_table"] if LAW == "table" else
+                   [n for n in NAMES if n not in LAWS["table"]["fit"]]
+                   + (["speed_table"] if any(n in LAWS["table"]["fit"] for n in NAMES)
+                      else [])),
         "fitted_values": dict(x),
         "carried": {k: FIXED[k] for k in LAWS[LAW].get("carried", ())},
         "bounds": {n: list(FIT[n]["bounds"]) for n in NAMES},
@@ -807,7 +911,8 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         "method": method,
         "data": ("Juelich uo-* runs (door and replayed entrance); published bottleneck "
                  "flows (pedmesh/data/bottleneck_literature.json); densities in front of "
-                 "entrances 5.5-9 /m^2 (Adrian et al. 2020); Weidmann free speed 1.34"
+                 f"entrances {FRONT_MIN:g}-{FRONT_MAX:g} /m^2 (Adrian et al. 2020); Weidmann "
+                 "free speed 1.34"
                  if FRONT else "Juelich uo-* runs; Seyfried 2009/Liddle 2011 bottleneck ~1.9 "
                  "/(m s); Weidmann free speed 1.34"),
         "date": datetime.date.today().isoformat(),
@@ -868,10 +973,10 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                   + " / ".join(" ".join(_pc(r[f"err/fd{_suffix(e)}/rho={d:g}"])
                                         for d in FD_RHOS) for e in ENTRANCES)
                   + f" | {float(r['seconds']):.0f} |")
-    if LAW in ("table", "crowd"):  # (the preset reads what this fit wrote)
+    if LAW in ("table", "crowd", "converged"):  # (the preset reads what this fit wrote)
         cmd = ("python -m pedmesh.fitting.validate --preset validated --entrance "
-               f"{ENTRANCE} --bottleneck --free --seeds 1,2,3,4,5,6 "
-               "--out docs/validation/validated")
+               f"{ENTRANCE} --bottleneck{' --walldoor' if DOOR_WIDTHS else ''} --free "
+               "--seeds 1,2,3,4,5,6 --out docs/validation/validated")
     else:
         cmd = (f"python -m pedmesh.fitting.validate --preset {PRESET} {params} --entrance "
                f"{ENTRANCE} --bottleneck --free --out docs/validation/validated")
