@@ -212,17 +212,21 @@ LAWS: dict[str, dict[str, Any]] = {
                   "route_resolution": 0.1, "route_clearance": 0.5, "density_cone": 2.0,
                   "wall_repulsion": 0.0},
         "fit": {
-            "g03": {"rho": 0.3, "bounds": (0.8, 1.0), "decimals": 3, "grid": (0.99,),
-                    "step": 0.02},
-            "g06": {"rho": 0.6, "bounds": (0.5, 1.0), "decimals": 3, "grid": (0.95,),
+            # the knots where the cone's density reads the corridors' crowds (lanes read
+            # denser ahead than around), a knot at 1 /m^2 for the walking crowd's speed
+            "g05": {"rho": 0.5, "bounds": (0.8, 1.0), "decimals": 3, "grid": (0.99,),
+                    "step": 0.01},
+            "g10": {"rho": 1.0, "bounds": (0.5, 1.0), "decimals": 3, "grid": (0.92,),
                     "step": 0.04},
-            "g15": {"rho": 1.5, "bounds": (0.3, 0.95), "decimals": 3, "grid": (0.70, 0.76)},
-            "g27": {"rho": 2.7, "bounds": (0.1, 0.7), "decimals": 3, "grid": (0.38, 0.44)},
-            "shrink": {"bounds": (0.0, 0.12), "decimals": 3, "grid": (0.063,), "step": 0.015},
-            "crowd_stretch": {"bounds": (1.0, 6.0), "decimals": 3, "grid": (3.312,),
-                              "step": 0.5},
+            "g20": {"rho": 2.0, "bounds": (0.2, 0.95), "decimals": 3, "grid": (0.62,),
+                    "step": 0.05},
+            "g30": {"rho": 3.0, "bounds": (0.05, 0.7), "decimals": 3, "grid": (0.34,),
+                    "step": 0.05},
+            "shrink": {"bounds": (0.0, 0.13), "decimals": 3, "grid": (0.11,), "step": 0.01},
+            "crowd_stretch": {"bounds": (1.0, 6.0), "decimals": 3, "grid": (1.5,),
+                              "step": 0.3},
             "queue_width": {"bounds": (1.2, 2.2), "decimals": 3, "grid": (1.737,),
-                            "step": 0.1},
+                            "step": 0.15},
             "crowd_knee": {"bounds": (2.0, 4.5), "decimals": 3, "grid": (3.138,), "step": 0.3},
         },
         "seeds": (1, 2),
@@ -363,11 +367,16 @@ def front_error(rho: float) -> float:
         rho / FRONT_MAX - 1.0 if rho > FRONT_MAX else 0.0)
 
 
+def _knots() -> dict[str, dict[str, Any]]:
+    """The table's knots of the running law (its fitted values with a density ``rho``)."""
+    return {n: f for n, f in FIT.items() if "rho" in f}
+
+
 def speed_table(x: dict[str, float]) -> str:
-    """The ``speed_table`` of the table law at the point ``x`` (g03..g27): the points
+    """The ``speed_table`` of the table law at the point ``x`` (its knots' g): the points
     0:1, then each knot's g, never above the one before, then TABLE_ZERO:0."""
     pts, g_prev = ["0:1"], 1.0
-    for n, knot in LAWS["table"]["fit"].items():
+    for n, knot in _knots().items():
         g_prev = min(float(x[n]), g_prev)
         pts.append(f"{knot['rho']:g}:{g_prev:g}")
     pts.append(f"{TABLE_ZERO:g}:0")
@@ -378,7 +387,7 @@ def model_parameters(x: dict[str, float]) -> dict[str, Any]:
     """The model parameters (``--param`` overrides) of the point ``x``: the fixed ones,
     then the fitted ones (for the table law: the ``speed_table`` they make)."""
     x = rounded(x)
-    knots = LAWS["table"]["fit"]
+    knots = _knots()
     g = {n: v for n, v in x.items() if n in knots}
     out = {**FIXED, **{n: v for n, v in x.items() if n not in knots}}
     if g:  # (the table and converged laws; the crowd law has its table among the fixed)
@@ -901,9 +910,8 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         "targets": {t["key"]: {"sim": _r4(t["sim"]), "ref": _r4(t["ref"]), "band": t["band"],
                                "pass": bool(t["pass"])} for t in tg},
         "fitted": (["speed_table"] if LAW == "table" else
-                   [n for n in NAMES if n not in LAWS["table"]["fit"]]
-                   + (["speed_table"] if any(n in LAWS["table"]["fit"] for n in NAMES)
-                      else [])),
+                   [n for n in NAMES if n not in _knots()]
+                   + (["speed_table"] if _knots() else [])),
         "fitted_values": dict(x),
         "carried": {k: FIXED[k] for k in LAWS[LAW].get("carried", ())},
         "bounds": {n: list(FIT[n]["bounds"]) for n in NAMES},
