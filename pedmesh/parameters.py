@@ -449,6 +449,10 @@ CONTINUUM: tuple[Parameter, ...] = declare(
                   "mass of their density kernel of this width beyond the exit (0: off, the "
                   "local density; the validated preset: the kernel width R)",
                   range=(0.0, 5.0)),
+    _non_negative("exit_cone", 0.0, "-", "eos: the social force model's density cone at "
+                  "exits (its density_cone): the kernel mass beyond an exit is weighted as "
+                  "people heading out see it (0: the isotropic kernel; the validated preset: "
+                  "its density_cone)", range=(0.0, 16.0)),
     _positive("empty_below", 0.5, "ped", "the room counts as empty when fewer than this "
               "many remain (the continuum never reaches exactly zero); t_evac_100 is then",
               range=(1e-6, 100.0)),

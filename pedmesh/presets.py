@@ -22,7 +22,11 @@ model everything).
   ``crowd_knee``, ``queue_width``, ``crowd_width``) fitted by ``fit_validated --law crowd``
   to both entrances of the corridor runs, the published bottleneck flows and the densities
   in front of entrances (``pedmesh/data/validated.json``; ``docs/validation/fit.md``), Table 1
-  otherwise. The continuum models take the fitted SFM's own fundamental diagram, measured by
+  otherwise. Since issue 44 its routes converge (``route_kernel``, ``route_clearance`` and
+  ``route_resolution``: the social force model walks on a route mesh of its own) and its
+  door physics reads the crowd ahead (``density_cone``) with walls that push on contact
+  only (``wall_repulsion``), and the table and dense-crowd terms were fitted anew with the
+  doors in a thin wall among the targets (``fit_validated --law converged``). The continuum models take the fitted SFM's own fundamental diagram, measured by
   ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``), as
   their table (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with
   these parameters (``pedmesh/data/eos_validated.json``) and reads its law near exits at
@@ -128,6 +132,10 @@ def _validated() -> "Preset | None":
             src = WEIDMANN + "; free walking speed 1.34 m/s"
         elif k == "density_self":
             src = "pedmesh: U_e without one's own kernel share, so a lone walker walks at U_f"
+        elif k in ("route_kernel", "route_resolution", "route_clearance", "density_cone",
+                   "wall_repulsion"):
+            src = (P.get(k).source + "; fixed in the fit (issue 44: routes that converge, "
+                   "door physics)")
         elif k in ("speed_law", "rho_jam", "gamma_w"):
             src = WEIDMANN
         else:
@@ -156,6 +164,12 @@ def _validated() -> "Preset | None":
         float(fit["parameters"].get("R", _PAPER_VALUES["R"].value)), _unit("exit_kernel"),
         "the validated SFM's kernel width R: eos reads its law near exits at the density "
         "that kernel sees (docs/validation/dense_crowds.md)")
+    cone = float(fit["parameters"].get("density_cone", 0.0) or 0.0)
+    if cone > 0:  # eos: the SFM's people at an exit look through it
+        continuum["exit_cone"] = Value(
+            cone, _unit("exit_cone"),
+            "the validated SFM's density_cone: eos weighs the kernel mass beyond an exit as "
+            "the social force model's people heading out see it")
     eos = DATA / "eos_validated.json"
     if eos.is_file():
         values["calibration"] = Value(str(eos), _unit("calibration"),

@@ -85,3 +85,24 @@ def test_only_the_validated_preset_sets_it():
         assert "exit_kernel" not in preset_overrides(pre, names, continuum=True)
     for model in ("rdue", "pw", "sfm"):
         assert "exit_kernel" not in get_model(model).parameter_names
+
+
+def test_the_cone_sees_through_the_exit():
+    """With the social force model's density cone the mass beyond an exit is what people
+    heading out see: all of it on the exit line (1, the isotropic kernel's 1/2), and the
+    quadrature against a direct integration over the plane."""
+    import math
+
+    from pedmesh.models.continuum.exit_kernel import cone_mass_beyond
+
+    R = 0.7
+    assert cone_mass_beyond(np.array([0.0]), R, 2.0)[0] == pytest.approx(1.0, rel=1e-9)
+    # direct: a fine polar grid of the cone-weighted kernel beyond y = s
+    r = np.linspace(1e-4, 6 * R, 3000)
+    th = np.linspace(-math.pi / 2, math.pi / 2, 2001)
+    Rr, T = np.meshgrid(r, th, indexing="ij")
+    dens = np.exp(-(Rr / R) ** 2) / (math.pi * R * R) * 4.0 * np.cos(T) ** 2 * Rr
+    for s in (0.2, 0.5, 1.0):
+        beyond = Rr * np.cos(T) > s
+        direct = np.trapezoid(np.trapezoid(dens * beyond, th, axis=1), r)
+        assert cone_mass_beyond(np.array([s]), R, 2.0)[0] == pytest.approx(direct, rel=2e-3)

@@ -18,7 +18,8 @@ parameters (given with ``--param A=...`` etc.) differ, the model says so in
 ``exit_kernel`` [m] (0: off; the ``validated`` preset sets the social force model's kernel
 width R): near an exit the speed law is read at the density the social force model's people
 see there, lowered by the kernel's mass beyond the exit
-(:mod:`pedmesh.models.continuum.exit_kernel`).
+(:mod:`pedmesh.models.continuum.exit_kernel`); ``exit_cone`` (the social force model's
+``density_cone``) weighs that mass as its people heading out see it.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ class EquationOfStateModel(BarotropicModel):
                  speed_law: str = D['speed_law'], rho_jam: float = D['rho_jam'],
                  gamma_w: float = D['gamma_w'], rho_shift: float = D['rho_shift'],
                  speed_table: str = D['speed_table'], exit_kernel: float = D['exit_kernel'],
-                 **sfm) -> None:
+                 exit_cone: float = D['exit_cone'], **sfm) -> None:
         unknown = set(sfm) - set(SFM_KEYS)
         if unknown:
             raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
@@ -84,6 +85,8 @@ class EquationOfStateModel(BarotropicModel):
         self.rho_range = (float(fit["rho"][0]), float(fit["rho"][-1]))
         #: [m] the width of the kernel beyond exits (0: off; see the module docstring)
         self.exit_kernel = float(exit_kernel)
+        #: the density cone of the social force model's people at exits (0: isotropic)
+        self.exit_cone = float(exit_cone)
         #: (m, 3) the factor of the density the speed law is read at, per interior point
         #: (None: 1 everywhere; set by :meth:`bind`, read by the relaxation kernels)
         self.seen = None
@@ -96,18 +99,20 @@ class EquationOfStateModel(BarotropicModel):
 
             pts = interior_points(mesh)
             cells = np.repeat(np.arange(len(pts)), 3)
-            w = exit_kernel_mass(mesh, pts.reshape(-1, 2), cells, self.exit_kernel)
+            w = exit_kernel_mass(mesh, pts.reshape(-1, 2), cells, self.exit_kernel,
+                                 self.exit_cone)
             if np.any(w > 0):
                 self.seen = np.ascontiguousarray((1.0 - w).reshape(-1, 3))
 
     def parameters(self) -> dict:
         return {"calibration": self.calibration, "exit_kernel": self.exit_kernel,
-                **super().parameters(),
+                "exit_cone": self.exit_cone, **super().parameters(),
                 **{k: v for k, v in self.sfm.items() if k != "tau"}}
 
 
 register_continuum_model("eos", EquationOfStateModel,
-                         BASE_PARAMETERS + SFM_PARAMETERS + ("calibration", "exit_kernel"),
+                         BASE_PARAMETERS + SFM_PARAMETERS + ("calibration", "exit_kernel",
+                                                             "exit_cone"),
                          aliases=("calibrated",), surface=True,
                          description="Payne-Whitham-type with the social force model's measured "
                                      "equation of state")

@@ -18,6 +18,18 @@ walkable side and ``t`` its coordinate along the edge (the half-strip beyond the
 exact for a straight exit). Walls are left alone: at a wall the social force model's
 people also see nobody beyond it, but they are pushed off it by the wall force, which the
 continuum's walls (mirror states) do not have either.
+
+With the social force model's density cone (``density_cone`` = p: a neighbour at angle
+``theta`` from one's heading counts ``norm max(0, cos theta)^p`` times) the people near an
+exit look through it, and the mass beyond an infinite straight exit at a distance ``s`` of
+someone heading out is
+
+.. math::  w_p(s) = \frac{\mathrm{norm}_p}{2 \pi} \int_{-\pi/2}^{\pi/2} \cos^p\theta\,
+           e^{-s^2 / (R^2 \cos^2\theta)} \, d\theta
+
+(1 on the exit line: they see nobody ahead; the isotropic kernel's is 1/2), times the same
+factor along the edge as above (the isotropic kernel's, an approximation near the edge's
+ends); the eos parameter ``exit_cone`` = p.
 """
 
 from __future__ import annotations
@@ -27,7 +39,21 @@ import math
 import numpy as np
 from scipy.special import erf, erfc
 
-__all__ = ["exit_kernel_mass", "interior_points"]
+__all__ = ["exit_kernel_mass", "interior_points", "cone_mass_beyond"]
+
+
+def cone_mass_beyond(s: np.ndarray, R: float, p: float) -> np.ndarray:
+    """``w_p(s)`` of the module docstring: the mass of the cone-weighted kernel (exponent
+    ``p`` > 0, width ``R`` [m]) beyond a straight line at distance(s) ``s`` [m] >= 0 ahead
+    of the viewer (Gauss-Legendre quadrature in the angle, 64 nodes)."""
+    from ...models.sfm.forces import cone_norm
+
+    s = np.maximum(np.asarray(s, float), 0.0)
+    x, wq = np.polynomial.legendre.leggauss(64)
+    th = 0.5 * math.pi * x  # (-pi/2, pi/2)
+    c = np.cos(th)
+    f = c ** p * np.exp(-(s[..., None] / R) ** 2 / (c * c))
+    return cone_norm(p) / (2.0 * math.pi) * (0.5 * math.pi) * (f * wq).sum(axis=-1)
 
 
 def interior_points(mesh) -> np.ndarray:
@@ -38,11 +64,13 @@ def interior_points(mesh) -> np.ndarray:
     return np.einsum("pb,mbd->mpd", INTERIOR_BARY, corners)
 
 
-def exit_kernel_mass(mesh, points: np.ndarray, cells: np.ndarray, R: float) -> np.ndarray:
+def exit_kernel_mass(mesh, points: np.ndarray, cells: np.ndarray, R: float,
+                     cone: float = 0.0) -> np.ndarray:
     """The mass ``w`` (k,) of the normalised Gaussian kernel of width ``R`` [m] beyond the
     exit edges of ``mesh`` at ``points`` (k, 2) [m] in the cells ``cells`` (k,) (see the
-    module docstring). On a building's surface an exit edge counts only for the cells of its
-    own piece (the pieces lie side by side in one plane)."""
+    module docstring; ``cone`` > 0: weighted by the density cone of that exponent, seen by
+    people heading out). On a building's surface an exit edge counts only for the cells of
+    its own piece (the pieces lie side by side in one plane)."""
     from ...mesh.triangle_mesh import BoundaryKind
 
     pts = np.asarray(points, float).reshape(-1, 2)
@@ -76,5 +104,6 @@ def exit_kernel_mass(mesh, points: np.ndarray, cells: np.ndarray, R: float) -> n
         if not near.any():
             continue
         sn, tn = np.maximum(s[near], 0.0), t[near]
-        w[near] += 0.25 * erfc(sn / R) * (erf((L - tn) / R) + erf(tn / R))
+        across = erfc(sn / R) if cone <= 0 else 2.0 * cone_mass_beyond(sn, R, cone)
+        w[near] += 0.25 * across * (erf((L - tn) / R) + erf(tn / R))
     return np.clip(w, 0.0, 1.0)
