@@ -24,9 +24,10 @@ model everything).
   in front of entrances (``pedmesh/data/validated.json``; ``docs/validation/fit.md``), Table 1
   otherwise. Since issue 44 its routes converge (``route_kernel``, ``route_clearance`` and
   ``route_resolution``: the social force model walks on a route mesh of its own) and its
-  door physics reads the crowd ahead (``density_cone``) with walls that push on contact
-  only (``wall_repulsion``), and the table and dense-crowd terms were fitted anew with the
-  doors in a thin wall among the targets (``fit_validated --law converged``). The continuum models take the fitted SFM's own fundamental diagram, measured by
+  door physics reads the crowd ahead (``density_cone``) with a wall's social force scaled
+  (``wall_repulsion``), and the table and dense-crowd terms were fitted anew with the
+  doors in a thin wall among the targets (``fit_validated --law converged``). The
+  continuum models take the fitted SFM's own fundamental diagram, measured by
   ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``), as
   their table (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with
   these parameters (``pedmesh/data/eos_validated.json``) and reads its law near exits at

@@ -34,7 +34,7 @@ import numpy as np
 from .errors import ParameterError
 from .parameters import DEFAULTS as D
 
-__all__ = ["SpeedLaw", "SPEED_LAWS", "EXPONENTIAL", "WEIDMANN", "TABLE", "shape",
+__all__ = ["cone_norm", "SpeedLaw", "SPEED_LAWS", "EXPONENTIAL", "WEIDMANN", "TABLE", "shape",
            "flux_and_slope", "speed_law_from", "parse_speed_table", "format_speed_table"]
 
 #: the lowest speed, in units of U_f, that the route cost assumes of a jam
@@ -290,3 +290,10 @@ def speed_law_from(params) -> SpeedLaw:
     return SpeedLaw(name=get("speed_law", d.name), U_f=get("U_f", d.U_f),
                     beta=get("beta", d.beta), rho_jam=get("rho_jam", d.rho_jam),
                     gamma_w=get("gamma_w", d.gamma_w), table=get("speed_table", ()))
+
+
+def cone_norm(p: float) -> float:
+    """The normalisation of the density cone of exponent ``p`` > 0: 1 / mean over all
+    directions of max(0, cos)^p, so that a uniform crowd reads its density;
+    2 sqrt(pi) Gamma(p/2 + 1) / Gamma((p + 1) / 2) (pi for p = 1, 4 for p = 2)."""
+    return 2.0 * math.sqrt(math.pi) * math.gamma(0.5 * p + 1.0) / math.gamma(0.5 * (p + 1.0))

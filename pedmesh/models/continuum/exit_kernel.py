@@ -1,4 +1,4 @@
-"""The density the social force model's people see near an exit, for the continuum's speed
+r"""The density the social force model's people see near an exit, for the continuum's speed
 law (``eos`` under the ``validated`` preset: the parameter ``exit_kernel``).
 
 A pedestrian of the social force model reads its desired speed at its kernel density, the
@@ -9,9 +9,9 @@ people in the door want to walk faster than the crowd behind them. The continuum
 law is read at the local density and misses that; with ``exit_kernel`` = R it is read at
 ``rho (1 - w(x))``, ``w`` the mass of the normalised kernel beyond the exits,
 
-.. math::  w(x) = \\sum_{\\text{exit edges}} \\tfrac12 \\operatorname{erfc}(s / R)
-           \\cdot \\tfrac12 \\left[\\operatorname{erf}((L - t) / R)
-           + \\operatorname{erf}(t / R)\\right]
+.. math::  w(x) = \sum_{\text{exit edges}} \tfrac12 \operatorname{erfc}(s / R)
+           \cdot \tfrac12 \left[\operatorname{erf}((L - t) / R)
+           + \operatorname{erf}(t / R)\right]
 
 for an edge of length ``L``, ``s`` the distance of ``x`` from the edge's line on the
 walkable side and ``t`` its coordinate along the edge (the half-strip beyond the edge:
@@ -39,6 +39,8 @@ import math
 import numpy as np
 from scipy.special import erf, erfc
 
+from ...speed import cone_norm
+
 __all__ = ["exit_kernel_mass", "interior_points", "cone_mass_beyond"]
 
 
@@ -46,8 +48,6 @@ def cone_mass_beyond(s: np.ndarray, R: float, p: float) -> np.ndarray:
     """``w_p(s)`` of the module docstring: the mass of the cone-weighted kernel (exponent
     ``p`` > 0, width ``R`` [m]) beyond a straight line at distance(s) ``s`` [m] >= 0 ahead
     of the viewer (Gauss-Legendre quadrature in the angle, 64 nodes)."""
-    from ...models.sfm.forces import cone_norm
-
     s = np.maximum(np.asarray(s, float), 0.0)
     x, wq = np.polynomial.legendre.leggauss(64)
     th = 0.5 * math.pi * x  # (-pi/2, pi/2)

@@ -10,18 +10,13 @@ import math
 import numba as nb
 import numpy as np
 
+from ...speed import cone_norm
+
 __all__ = ["pair_force", "pair_terms", "cone_norm", "cone_weights", "NO_CONE"]
 
 #: the kernel density's (exponent, normalisation) without a cone: every neighbour counts
 #: fully (the paper's eq3)
 NO_CONE = np.array([0.0, 1.0])
-
-
-def cone_norm(p: float) -> float:
-    """The normalisation of the density cone of exponent ``p`` > 0: 1 / mean over all
-    directions of max(0, cos)^p, so that a uniform crowd reads its density;
-    2 sqrt(pi) Gamma(p/2 + 1) / Gamma((p + 1) / 2) (pi for p = 1, 4 for p = 2)."""
-    return 2.0 * math.sqrt(math.pi) * math.gamma(0.5 * p + 1.0) / math.gamma(0.5 * (p + 1.0))
 
 
 @nb.njit(cache=True, inline="always")
