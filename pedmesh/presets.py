@@ -11,7 +11,8 @@ model everything).
   result made before presets existed.
 * ``weidmann``: the paper's social force model with the desired speed of Weidmann's
   fundamental diagram (free speed 1.34 m/s, jam density 5.4 /m^2). Literature values, not
-  fitted to experiments.
+  fitted to experiments. Its routes converge as ``validated``'s do (``route_kernel`` 2 m,
+  ``route_resolution`` 0.1 m: a route mesh of its own).
 * ``validated`` (the default): the social force model's desired speed a table
   (``speed_law=table``) in its kernel density without one's own share (``density_self=0``,
   free speed 1.34 m/s), fitted by ``python -m pedmesh.fitting.fit_validated`` to the Juelich
@@ -171,6 +172,10 @@ def _validated() -> "Preset | None":
             cone, _unit("exit_cone"),
             "the validated SFM's density_cone: eos weighs the kernel mass beyond an exit as "
             "the social force model's people heading out see it")
+        continuum["lookahead"] = Value(
+            cone, _unit("lookahead"),
+            "the validated SFM's density_cone: eos reads its law at the density ahead, as the "
+            "social force model's people read theirs")
     eos = DATA / "eos_validated.json"
     if eos.is_file():
         values["calibration"] = Value(str(eos), _unit("calibration"),
@@ -180,6 +185,13 @@ def _validated() -> "Preset | None":
                                "bottleneck flows, free walking speed); see "
                                "docs/validation/", values, continuum)
 
+
+#: the social force model's routes on their own mesh (issue 44), in the presets that are not
+#: the paper's: the route reads the crowd on a 2 m scale and is solved on a route mesh
+#: resolved at 0.1 m at the exits and corners, so that the run's mesh does not change the
+#: answer (docs/validation/route_convergence.md)
+_ROUTES = {k: Value(v, _unit(k), P.get(k).source + "; issue 44: routes that converge")
+           for k, v in (("route_kernel", 2.0), ("route_resolution", 0.1))}
 
 PRESETS: dict[str, Preset] = {
     "paper": Preset(
@@ -192,7 +204,8 @@ PRESETS: dict[str, Preset] = {
          "speed_law": Value("weidmann", "",
                             WEIDMANN + ": U_e = U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam)))"),
          "U_f": Value(1.34, _unit("U_f"), WEIDMANN),
-         **{k: Value(P.get(k).default, _unit(k), WEIDMANN) for k in ("rho_jam", "gamma_w")}}),
+         **{k: Value(P.get(k).default, _unit(k), WEIDMANN) for k in ("rho_jam", "gamma_w")},
+         **_ROUTES}),
 }
 
 if (_v := _validated()) is not None:

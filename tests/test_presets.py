@@ -109,7 +109,7 @@ def test_presets_command_lists_values_units_sources(capsys):
     for name in PRESETS:
         assert out.count(f"{name}") >= 1
     assert "U_f              1.034 m/s       paper, Table 1" in out
-    assert "rho_jam            5.4 ped/m^2   Weidmann" in out
+    assert "rho_jam                   5.4 ped/m^2   Weidmann" in out
     assert main(["presets", "nope"]) == 2
 
 
