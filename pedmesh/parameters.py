@@ -453,6 +453,14 @@ CONTINUUM: tuple[Parameter, ...] = declare(
                   "exits (its density_cone): the kernel mass beyond an exit is weighted as "
                   "people heading out see it (0: the isotropic kernel; the validated preset: "
                   "its density_cone)", range=(0.0, 16.0)),
+    _non_negative("lookahead", 0.0, "-", "eos: the speed law read at the density ahead, as "
+                  "the social force model's people read theirs: the crowd's density averaged "
+                  "with the kernel of width exit_kernel weighted by the density cone of this "
+                  "exponent about the desired direction (nonlocal; needs exit_kernel > 0; 0: "
+                  "off, the law at the local density; the validated preset: its "
+                  "density_cone)", "Colombo, Garavello & Lecureux-Mercier 2012 (a crowd's "
+                  "speed from its density ahead); pedmesh: the validated social force "
+                  "model's density_cone", range=(0.0, 16.0)),
     _positive("empty_below", 0.5, "ped", "the room counts as empty when fewer than this "
               "many remain (the continuum never reaches exactly zero); t_evac_100 is then",
               range=(1e-6, 100.0)),

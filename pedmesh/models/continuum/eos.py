@@ -19,7 +19,10 @@ parameters (given with ``--param A=...`` etc.) differ, the model says so in
 width R): near an exit the speed law is read at the density the social force model's people
 see there, lowered by the kernel's mass beyond the exit
 (:mod:`pedmesh.models.continuum.exit_kernel`); ``exit_cone`` (the social force model's
-``density_cone``) weighs that mass as its people heading out see it.
+``density_cone``) weighs that mass as its people heading out see it. ``lookahead`` (the
+social force model's ``density_cone`` again) reads the law at the density ahead, as the
+social force model's people read theirs: the crowd's density averaged with that kernel and
+cone about the desired direction (:mod:`pedmesh.models.continuum.lookahead`; nonlocal).
 """
 
 from __future__ import annotations
@@ -55,7 +58,8 @@ class EquationOfStateModel(BarotropicModel):
                  speed_law: str = D['speed_law'], rho_jam: float = D['rho_jam'],
                  gamma_w: float = D['gamma_w'], rho_shift: float = D['rho_shift'],
                  speed_table: str = D['speed_table'], exit_kernel: float = D['exit_kernel'],
-                 exit_cone: float = D['exit_cone'], **sfm) -> None:
+                 exit_cone: float = D['exit_cone'], lookahead: float = D['lookahead'],
+                 **sfm) -> None:
         unknown = set(sfm) - set(SFM_KEYS)
         if unknown:
             raise ParameterError(f"unknown parameter '{sorted(unknown)[0]}'")
@@ -87,6 +91,14 @@ class EquationOfStateModel(BarotropicModel):
         self.exit_kernel = float(exit_kernel)
         #: the density cone of the social force model's people at exits (0: isotropic)
         self.exit_cone = float(exit_cone)
+        #: the density cone of the law's read ahead (0: off; needs exit_kernel > 0)
+        self.lookahead = float(lookahead)
+        if self.lookahead > 0 and not self.exit_kernel > 0:
+            raise ParameterError("eos: lookahead reads the density ahead with the kernel of "
+                                 "width exit_kernel; set exit_kernel > 0 (e.g. the social "
+                                 "force model's R, 0.7 m)")
+        self._ahead = None
+        self._static_seen = None
         #: (m, 3) the factor of the density the speed law is read at, per interior point
         #: (None: 1 everywhere; set by :meth:`bind`, read by the relaxation kernels)
         self.seen = None
@@ -103,16 +115,52 @@ class EquationOfStateModel(BarotropicModel):
                                  self.exit_cone)
             if np.any(w > 0):
                 self.seen = np.ascontiguousarray((1.0 - w).reshape(-1, 3))
+        self._ahead = None
+        if self.lookahead > 0:
+            from .lookahead import Lookahead
+
+            self._ahead = Lookahead(mesh, self.exit_kernel, self.lookahead)
+            self._static_seen = (np.ones((mesh.n_triangles, 3)) if self.seen is None
+                                 else self.seen.copy())
+            self.seen = self._static_seen.copy()
+
+    def _read_ahead(self, rho_pts: np.ndarray, ex: np.ndarray, ey: np.ndarray) -> None:
+        """:attr:`seen` from the density ahead of each cell: the points' densities
+        ``rho_pts`` (m, 3) and desired directions (3 m,)."""
+        m = len(rho_pts)
+        rbar = rho_pts.mean(axis=1)
+        exc = np.asarray(ex).reshape(m, 3).mean(axis=1)
+        eyc = np.asarray(ey).reshape(m, 3).mean(axis=1)
+        n = np.hypot(exc, eyc)
+        ok = n > 0
+        exc[ok] /= n[ok]
+        eyc[ok] /= n[ok]
+        ahead = self._ahead(rbar, exc, eyc)
+        ratio = np.ones(m)
+        live = rbar > self.rho_vac
+        ratio[live] = ahead[live] / rbar[live]
+        np.multiply(self._static_seen, ratio[:, None], out=self.seen)
+
+    def source_mean(self, Vi, ex, ey, dQ, cact):
+        if self._ahead is not None:
+            self._read_ahead(Vi[:, :, 0], ex, ey)
+        super().source_mean(Vi, ex, ey, dQ, cact)
+
+    def source(self, q, ex, ey):
+        if self._ahead is not None:
+            self._read_ahead(q[:, 0].reshape(-1, 3), ex, ey)
+        return super().source(q, ex, ey)
 
     def parameters(self) -> dict:
         return {"calibration": self.calibration, "exit_kernel": self.exit_kernel,
-                "exit_cone": self.exit_cone, **super().parameters(),
+                "exit_cone": self.exit_cone, "lookahead": self.lookahead,
+                **super().parameters(),
                 **{k: v for k, v in self.sfm.items() if k != "tau"}}
 
 
 register_continuum_model("eos", EquationOfStateModel,
                          BASE_PARAMETERS + SFM_PARAMETERS + ("calibration", "exit_kernel",
-                                                             "exit_cone"),
+                                                             "exit_cone", "lookahead"),
                          aliases=("calibrated",), surface=True,
                          description="Payne-Whitham-type with the social force model's measured "
                                      "equation of state")
