@@ -51,7 +51,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 BEFORE = {"speed_law": "table", "density_self": 0, "U_f": 1.34, "tau": 0.3062, "A": 962.0,
           "speed_table": "0:1 0.3:0.944 0.6:0.802 1.5:0.582 2.7:0.298 5.6:0",
           "t_space": 0.15, "crowd_width": 2.3, "shrink": 0.063, "crowd_stretch": 3.312,
-          "queue_width": 1.737, "crowd_knee": 3.138}
+          "queue_width": 1.737, "crowd_knee": 3.138,
+          # (the weidmann preset has converged routes since issue 44; before, no preset had)
+          "route_kernel": None, "route_resolution": None}
 ROUTE = {"route_kernel": 2.0, "route_resolution": 0.1}
 #: name -> (what it is, preset, overrides)
 PROBES: dict[str, tuple[str, str, dict]] = {

@@ -457,10 +457,10 @@ CONTINUUM: tuple[Parameter, ...] = declare(
                   "the social force model's people read theirs: the crowd's density averaged "
                   "with the kernel of width exit_kernel weighted by the density cone of this "
                   "exponent about the desired direction (nonlocal; needs exit_kernel > 0; 0: "
-                  "off, the law at the local density; the validated preset: its "
-                  "density_cone)", "Colombo, Garavello & Lecureux-Mercier 2012 (a crowd's "
-                  "speed from its density ahead); pedmesh: the validated social force "
-                  "model's density_cone", range=(0.0, 16.0)),
+                  "off, the law at the local density, in every preset; the social force "
+                  "model's density_cone, 2, is its counterpart)", "Colombo, Garavello & "
+                  "Lecureux-Mercier 2012 (a crowd's speed from its density ahead)",
+                  range=(0.0, 16.0)),
     _positive("empty_below", 0.5, "ped", "the room counts as empty when fewer than this "
               "many remain (the continuum never reaches exactly zero); t_evac_100 is then",
               range=(1e-6, 100.0)),

@@ -172,10 +172,6 @@ def _validated() -> "Preset | None":
             cone, _unit("exit_cone"),
             "the validated SFM's density_cone: eos weighs the kernel mass beyond an exit as "
             "the social force model's people heading out see it")
-        continuum["lookahead"] = Value(
-            cone, _unit("lookahead"),
-            "the validated SFM's density_cone: eos reads its law at the density ahead, as the "
-            "social force model's people read theirs")
     eos = DATA / "eos_validated.json"
     if eos.is_file():
         values["calibration"] = Value(str(eos), _unit("calibration"),

@@ -231,7 +231,9 @@ def test_validated_crowd_presses_at_a_narrow_bottleneck(tmp_path):
     """Regression of the validated preset at a 0.6 m bottleneck (issue 31): the crowd in
     front packs above 5.5 /m^2 (Voronoi, 1 m in front, 0.5 m beyond each side), its
     specific flow is inside the published band at that width, nobody stays stuck; with the
-    dense-crowd terms off the same crowd packs looser and passes less."""
+    dense-crowd terms off the same crowd packs looser. (Before issue 44 it also passed less;
+    since the desired speed reads the crowd ahead, the first row walks into a free door
+    either way and the flow stays in the band without them: 2.37 and 2.44 /(m s) measured.)"""
     pytest.importorskip("pedpy")
     from pedmesh.presets import get_preset
     from pedmesh.run import run_model
@@ -256,4 +258,4 @@ def test_validated_crowd_presses_at_a_narrow_bottleneck(tmp_path):
     lo, hi, _ = V.published_band(b)
     assert lo <= out["on"][0] <= hi
     assert out["on"][1] >= 5.5
-    assert out["off"][1] < out["on"][1] - 0.5 and out["off"][0] < out["on"][0]
+    assert out["off"][1] < out["on"][1] - 0.5 and lo <= out["off"][0] <= hi

@@ -19,10 +19,11 @@ parameters (given with ``--param A=...`` etc.) differ, the model says so in
 width R): near an exit the speed law is read at the density the social force model's people
 see there, lowered by the kernel's mass beyond the exit
 (:mod:`pedmesh.models.continuum.exit_kernel`); ``exit_cone`` (the social force model's
-``density_cone``) weighs that mass as its people heading out see it. ``lookahead`` (the
-social force model's ``density_cone`` again) reads the law at the density ahead, as the
-social force model's people read theirs: the crowd's density averaged with that kernel and
-cone about the desired direction (:mod:`pedmesh.models.continuum.lookahead`; nonlocal).
+``density_cone``) weighs that mass as its people heading out see it. ``lookahead`` (an
+option, off in every preset) reads the law at the density ahead, as the social force
+model's people with their ``density_cone`` read theirs: the crowd's density averaged with
+that kernel and a cone about the desired direction
+(:mod:`pedmesh.models.continuum.lookahead`; nonlocal).
 """
 
 from __future__ import annotations
@@ -124,11 +125,15 @@ class EquationOfStateModel(BarotropicModel):
                                  else self.seen.copy())
             self.seen = self._static_seen.copy()
 
-    def _read_ahead(self, rho_pts: np.ndarray, ex: np.ndarray, ey: np.ndarray) -> None:
+    def _read_ahead(self, rho_pts: np.ndarray, ex: np.ndarray, ey: np.ndarray,
+                    active: np.ndarray | None = None) -> None:
         """:attr:`seen` from the density ahead of each cell: the points' densities
-        ``rho_pts`` (m, 3) and desired directions (3 m,)."""
+        ``rho_pts`` (m, 3) and desired directions (3 m,); cells not ``active`` are empty
+        (the solver leaves their points unset)."""
         m = len(rho_pts)
         rbar = rho_pts.mean(axis=1)
+        if active is not None:
+            rbar = np.where(np.asarray(active, bool), rbar, 0.0)
         exc = np.asarray(ex).reshape(m, 3).mean(axis=1)
         eyc = np.asarray(ey).reshape(m, 3).mean(axis=1)
         n = np.hypot(exc, eyc)
@@ -143,7 +148,7 @@ class EquationOfStateModel(BarotropicModel):
 
     def source_mean(self, Vi, ex, ey, dQ, cact):
         if self._ahead is not None:
-            self._read_ahead(Vi[:, :, 0], ex, ey)
+            self._read_ahead(Vi[:, :, 0], ex, ey, cact)
         super().source_mean(Vi, ex, ey, dQ, cact)
 
     def source(self, q, ex, ey):
