@@ -44,13 +44,15 @@ MODELS = {"sfm-validated": ("sfm", "validated"), "sfm-paper": ("sfm", "paper"),
 SEEDS = (0, 1)
 #: [m] the social force model's route mesh resolutions refined at the default mesh
 RESOLUTIONS = (0.2, 0.1, 0.05)
+#: [m] the route kernels of the sensitivity study (the model, not the numerics)
+KERNELS = (1.0, 1.5, 2.0, 3.0)
 
 
-def _key(room: str, label: str, area, seed, resolution=None) -> str:
-    return f"{room}|{label}|{area}|{seed}|{resolution}"
+def _key(room: str, label: str, area, seed, resolution=None, kernel=None) -> str:
+    return f"{room}|{label}|{area}|{seed}|{resolution}" + (f"|L{kernel}" if kernel else "")
 
 
-def run_one(room: str, label: str, area, seed, resolution=None) -> dict:
+def run_one(room: str, label: str, area, seed, resolution=None, kernel=None) -> dict:
     """T50, T90, T100 [s] and the wall time of one run."""
     import pedmesh
 
@@ -58,6 +60,8 @@ def run_one(room: str, label: str, area, seed, resolution=None) -> dict:
     mo = None if area == "default" else {"max_area": float(area), "feature_area": None}
     kw = {} if seed is None else {"seed": int(seed)}
     params = {} if resolution is None else {"route_resolution": float(resolution)}
+    if kernel is not None:
+        params["route_kernel"] = float(kernel)
     t0 = time.perf_counter()
     res = pedmesh.simulate(str(ROOMS[room]), model, preset=preset, mesh_options=mo,
                            params=params, t_end=1000.0, **kw)
@@ -78,6 +82,8 @@ def _plan(rooms, labels, resolutions) -> list[tuple]:
                 todo += [(room, label, area, s, None) for s in seeds]
         if "sfm-validated" in labels:
             todo += [(room, "sfm-validated", "default", s, r) for r in resolutions
+                     for s in SEEDS]
+            todo += [(room, "sfm-validated", "default", s, None, k) for k in KERNELS
                      for s in SEEDS]
     return todo
 
@@ -119,7 +125,19 @@ def summarise(runs: dict, rooms, labels, resolutions) -> dict:
                                      ("T50", "T90")},
                                   **{f"{k}_spread": float(np.ptp([g[k] for g in got]))
                                      for k in ("T50", "T90")}})
-        out[room] = {"rows": rows, "resolution": study}
+        kernels = []
+        if "sfm-validated" in labels:
+            for k in KERNELS:
+                got = [runs.get(_key(room, "sfm-validated", "default", s, None, k))
+                       for s in SEEDS]
+                got = [g for g in got if g is not None]
+                if got:
+                    kernels.append({"kernel": k, "n": len(got),
+                                    **{q: float(np.mean([g[q] for g in got])) for q in
+                                       ("T50", "T90")},
+                                    **{f"{q}_spread": float(np.ptp([g[q] for g in got]))
+                                       for q in ("T50", "T90")}})
+        out[room] = {"rows": rows, "resolution": study, "kernel": kernels}
     return out
 
 

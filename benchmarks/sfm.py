@@ -11,8 +11,14 @@
 5. ``--dense-ab`` (alone): the cost per step of the dense-crowd terms (space requirement,
    crowding) under the validated preset, A/B against the same preset without them,
    interleaved (goal: at most 1.2 x).
+6. ``--converged-ab`` (alone, issue 44): the cost per step of Example 2 under the validated
+   preset (routes on their own mesh, the door physics) against the preset as it was before
+   (routes on the run's default mesh, its parameters written out in
+   ``benchmarks/door_physics.py``), in one run, interleaved, through the run's whole
+   process (routes every 1 s, everything a step does; goal: at most 1.2 x).
 
-    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling] [--dense-ab] [--json FILE]
+    python benchmarks/sfm.py [--skip-jupedsim] [--skip-scaling] [--dense-ab]
+                             [--converged-ab] [--json FILE]
 
 Goals (issue 4): <= 1.5 ms per step with 2400 agents including density and rerouting;
 Example 2 end to end <= 0.25 x JuPedSim's wall time; cost per agent-step flat within 1.3x
@@ -224,8 +230,65 @@ def dense_terms_ab(steps: int = 300, repeats: int = 5, preset: str = "validated"
     return times, {k: vals.get(k) for k in DENSE_OFF}
 
 
+def converged_ab(t0: float = 5.0, t1: float = 35.0, repeats: int = 7) -> dict:
+    """Wall time per step [s] of Example 2 between ``t0`` and ``t1`` [s] of simulated time
+    (everyone inside, routes re-solved every second) under ``validated`` and under the
+    preset before issue 44, interleaved ``repeats`` times; and their split (forces, settle,
+    routing) and route mesh size."""
+    import sys
+
+    import pedmesh
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from door_physics import BEFORE
+
+    cases = {"validated": ("validated", {}), "before": ("weidmann", dict(BEFORE))}
+    out = {k: {"step": [], "forces": [], "settle": [], "routing": []} for k in cases}
+    for _ in range(repeats):
+        for key, (preset, ov) in cases.items():
+            run = pedmesh.build(ROOT / "geometries" / "example2.json", "sfm", preset=preset,
+                                params=ov)
+            while run.t < t0:
+                run.step()
+            tm = run.sim.timers
+            f0, s0, r0, n0 = tm.forces, tm.settle, tm.routing, tm.steps
+            w = time.perf_counter()
+            while run.t < t1:
+                run.step()
+            n = tm.steps - n0
+            out[key]["step"].append((time.perf_counter() - w) / n)
+            out[key]["forces"].append((tm.forces - f0) / n)
+            out[key]["settle"].append((tm.settle - s0) / n)
+            out[key]["routing"].append((tm.routing - r0) / n)
+            out[key]["triangles"] = int(run.sim.mesh.n_triangles)
+    return out
+
+
 def main(skip_jupedsim: bool = False, skip_scaling: bool = False,
-         dense_ab: bool = False, json_path: str | None = None) -> None:
+         dense_ab: bool = False, json_path: str | None = None,
+         conv_ab: bool = False) -> None:
+    if conv_ab:
+        res = converged_ab()
+        print("Example 2, t 5-35 s (everyone inside, routes every 1 s), 7 interleaved "
+              "repeats, ms per step (median / best):")
+        for key, r in res.items():
+            parts = ", ".join(f"{k} {1e3 * np.median(r[k]):.3f}" for k in
+                              ("forces", "settle", "routing"))
+            print(f"  {key:10s} {1e3 * np.median(r['step']):.3f} / {1e3 * min(r['step']):.3f}"
+                  f"  ({parts}; {r['triangles']:,} triangles walked on)")
+        a, b = np.array(res["validated"]["step"]), np.array(res["before"]["step"])
+        r_med, r_best = np.median(a) / np.median(b), a.min() / b.min()
+        print(f"  ratio validated / before: median {r_med:.3f}, best {r_best:.3f} (goal <= "
+              f"1.20: {'met' if max(r_med, r_best) <= 1.2 else 'NOT met'})")
+        if json_path:
+            import sys
+
+            sys.path.insert(0, str(ROOT / "benchmarks"))
+            from _common import write_json
+
+            write_json(json_path, {"converged_ab": res, "ratio_median": r_med,
+                                   "ratio_best": r_best})
+        return
     if dense_ab:
         times, terms = dense_terms_ab()
         on, off = np.array(times["on"]), np.array(times["off"])
@@ -304,7 +367,10 @@ if __name__ == "__main__":
     ap.add_argument("--skip-scaling", action="store_true")
     ap.add_argument("--dense-ab", action="store_true",
                     help="only the cost of the dense-crowd terms (A/B on Example 2)")
+    ap.add_argument("--converged-ab", action="store_true",
+                    help="only the cost of issue 44's validated preset against the one "
+                         "before (A/B on Example 2)")
     ap.add_argument("--json", default=None,
                     help="write Example 2's figures and JuPedSim's to this file")
     a = ap.parse_args()
-    main(a.skip_jupedsim, a.skip_scaling, a.dense_ab, a.json)
+    main(a.skip_jupedsim, a.skip_scaling, a.dense_ab, a.json, a.converged_ab)

@@ -17,6 +17,9 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
 * ``docs/data/threads_eos.json``: ``python benchmarks/threads.py --model eos --profile 80
   --json FILE`` (eos's kernels and whole steps on the venue on 1, 2, ... threads, and the
   serial share of a one-thread step).
+* ``docs/data/convergence.json``: ``python benchmarks/convergence.py --json FILE`` (T50 and
+  T90 of every model against the run's mesh, and of the social force model against its
+  route mesh's resolution).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -201,12 +204,67 @@ def sfm_reference(path: Path = DATA / "sfm_jupedsim.json") -> str:
     return "\n".join(lines)
 
 
+def _t(v, spread=None) -> str:
+    if v is None:
+        return "-"
+    return f"{v:.1f}" + (f" ±{0.5 * spread:.1f}" if spread else "")
+
+
+def convergence(path: Path = DATA / "convergence.json") -> str:
+    """The mesh convergence study of ``benchmarks/convergence.py`` (issue 44)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    summary = res["summary"]
+    lines = []
+    for room, s in summary.items():
+        areas = []
+        for row in s["rows"]:
+            for c in row["meshes"]:
+                if c["area"] not in areas:
+                    areas.append(c["area"])
+        head = ["model", *(f"{a} m²" if a != "default" else "default (graded)" for a in areas)]
+        rows = []
+        for row in s["rows"]:
+            by = {c["area"]: c for c in row["meshes"]}
+            cells = []
+            for a in areas:
+                c = by.get(a)
+                if c is None or c["T90"] is None:
+                    cells.append("-")
+                    continue
+                d = "" if a == "default" or c.get("dT90") is None else (
+                    f" ({100 * c['dT50']:+.1f} / {100 * c['dT90']:+.1f} %)")
+                cells.append(f"{_t(c['T50'], c['T50_spread'])} / "
+                             f"{_t(c['T90'], c['T90_spread'])}{d}")
+            rows.append([f"`{row['model']}`", *cells])
+        lines += [f"**{room}**: T50 / T90 [s] on each mesh (the social force model: mean of "
+                  f"seeds {', '.join(map(str, res.get('seeds', [0, 1])))}, ± half their "
+                  "spread; in brackets the change against the default mesh)", ""]
+        lines += _table(head, rows, "l" * len(head))
+        if s["resolution"]:
+            lines += ["", f"**{room}**, `sfm-validated` at the default mesh against its route "
+                      "mesh's `route_resolution`:", ""]
+            lines += _table(["route_resolution [m]", "T50 [s]", "T90 [s]"],
+                            [[f"{r['resolution']:g}", _t(r["T50"], r["T50_spread"]),
+                              _t(r["T90"], r["T90_spread"])] for r in s["resolution"]])
+        if s.get("kernel"):
+            lines += ["", f"**{room}**, `sfm-validated` at the default mesh against its "
+                      "`route_kernel` (the model, not the numerics):", ""]
+            lines += _table(["route_kernel [m]", "T50 [s]", "T90 [s]"],
+                            [[f"{r['kernel']:g}", _t(r["T50"], r["T50_spread"]),
+                              _t(r["T90"], r["T90_spread"])] for r in s["kernel"]])
+        lines.append("")
+    lines += [_provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
             "figures_threads_sfm.md": threads_sfm,
             "figures_threads_eos.md": threads_eos,
-            "figures_sfm_jupedsim.md": sfm_reference}
+            "figures_sfm_jupedsim.md": sfm_reference,
+            "figures_convergence.md": convergence}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

