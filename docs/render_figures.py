@@ -20,6 +20,8 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
 * ``docs/data/convergence.json``: ``python benchmarks/convergence.py --json FILE`` (T50 and
   T90 of every model against the run's mesh, and of the social force model against its
   route mesh's resolution).
+* ``docs/data/converged_ab.json``: ``python benchmarks/sfm.py --converged-ab --json FILE``
+  (the validated preset's cost per step on Example 2 against the preset before issue 44).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -30,6 +32,7 @@ from __future__ import annotations
 
 import csv
 import json
+import statistics
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
@@ -258,13 +261,33 @@ def convergence(path: Path = DATA / "convergence.json") -> str:
     return "\n".join(lines)
 
 
+def converged_ab(path: Path = DATA / "converged_ab.json") -> str:
+    """The cost per step of issue 44's validated preset against the one before it
+    (``benchmarks/sfm.py --converged-ab``)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    rows = []
+    for key, r in res["converged_ab"].items():
+        rows.append([f"`{key}`", f"{r['triangles']:,}",
+                     *(f"{1e3 * statistics.median(r[k]):.3f}" for k in
+                       ("step", "forces", "settle", "routing")),
+                     f"{1e3 * min(r['step']):.3f}"])
+    lines = _table(["preset", "triangles walked on", "step [ms] (median)", "forces", "settle",
+                    "routing", "step (best)"], rows)
+    lines += ["", f"Ratio validated / before: median {res['ratio_median']:.2f}, best "
+              f"{res['ratio_best']:.2f} (the issue's goal: at most 1.20).", "",
+              _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
             "figures_threads_sfm.md": threads_sfm,
             "figures_threads_eos.md": threads_eos,
             "figures_sfm_jupedsim.md": sfm_reference,
-            "figures_convergence.md": convergence}
+            "figures_convergence.md": convergence,
+            "figures_converged_ab.md": converged_ab}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:
