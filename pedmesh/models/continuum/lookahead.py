@@ -32,7 +32,10 @@ import numba as nb
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..._threads import ensure_tbb
 from ...speed import cone_norm
+
+ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 
 __all__ = ["Lookahead"]
 
