@@ -450,22 +450,16 @@ def evaluate(x: dict[str, float], data_dir: str | None = None,
             rec[f"v_sim{t}/rho={d:g}"] = fd["speed_sim"]
             rec[f"n_sim{t}/rho={d:g}"] = fd["n_sim"]
             rec[f"v_exp{t}/rho={d:g}"] = fd["speed_exp"] if fd["n_exp"] else math.nan
-        for row in res.get("bottleneck") or []:
-            b = row["width_m"]
-            failed += row["error"] is not None
-            clogged += row["error"] is None and (row["status"] != "finished"
-                                                 or row.get("stuck", 0) > 0)
-            rec[f"Jb_sim/b={b:g}"] = row["J_per_b"]
-            rec[f"rho_front/b={b:g}"] = row.get("front_density", math.nan)
-            rec[f"stuck/b={b:g}"] = row.get("stuck", 0)
-        for row in res.get("walldoor") or []:
-            b = row["width_m"]
-            failed += row["error"] is not None
-            clogged += row["error"] is None and (row["status"] != "finished"
-                                                 or row.get("stuck", 0) > 0)
-            rec[f"Jw_sim/b={b:g}"] = row["J_per_b"]
-            rec[f"rho_front_w/b={b:g}"] = row.get("front_density", math.nan)
-            rec[f"stuck_w/b={b:g}"] = row.get("stuck", 0)
+        # the long openings and the doors in a wall: (series, flow key, suffix)
+        for series, jkey, sfx in (("bottleneck", "Jb", ""), ("walldoor", "Jw", "_w")):
+            for row in res.get(series) or []:
+                b = row["width_m"]
+                failed += row["error"] is not None
+                clogged += row["error"] is None and (row["status"] != "finished"
+                                                     or row.get("stuck", 0) > 0)
+                rec[f"{jkey}_sim/b={b:g}"] = row["J_per_b"]
+                rec[f"rho_front{sfx}/b={b:g}"] = row.get("front_density", math.nan)
+                rec[f"stuck{sfx}/b={b:g}"] = row.get("stuck", 0)
     rec["failed"], rec["clogged"] = failed, clogged
     rec["rms_all"] = float(np.mean(rms))
     rec["seconds"] = time.perf_counter() - t0

@@ -275,7 +275,7 @@ class Simulation:
         free-width map it reads (see :meth:`_set_width_map`); ``shrink`` must stay below
         every body radius."""
         p = self.params
-        from .forces import cone_norm
+        from ...speed import cone_norm
 
         cone = float(p.density_cone)
         self._space = np.array([p.shrink, p.t_space, p.vision, p.crowd_stretch, p.crowd_knee,
@@ -471,16 +471,20 @@ class Simulation:
                 self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
                 self.n_waiting -= 1
 
+    def _rows(self) -> tuple:
+        """The per-pedestrian arrays, in the order :func:`~pedmesh.models.sfm.kernels.compact`
+        takes them (what compact moves, :meth:`_sort_rows` sorts)."""
+        return (self.x, self.v, self.rad, self.u0, self._u_eff, self.tpre, self.toff, self._e,
+                self.ids, self.tri, self.rho)
+
     def _sort_rows(self) -> None:
         """Put the rows of the pedestrians inside in the order of their triangles (stable),
-        every per-pedestrian array alike (those :func:`~pedmesh.models.sfm.kernels.compact`
-        moves)."""
+        every per-pedestrian array alike."""
         n = self.n
         if n < 2:
             return
         order = np.argsort(self.tri[:n], kind="stable")
-        for a in (self.x, self.v, self._e, self.rad, self.u0, self._u_eff, self.tpre, self.toff,
-                  self.ids, self.tri, self.rho):
+        for a in self._rows():
             a[:n] = a[:n][order]
 
     def _directions(self, lo: int, hi: int) -> np.ndarray:
@@ -682,9 +686,7 @@ class Simulation:
             self.exit_time[ids] = self.t + self._exit_frac[:n][gone] * dt
             self.exit_id[ids] = self._exit_of[:n][gone]
             self.exit_point[ids] = self.x[:n][gone]
-            self.n = K.compact(self._exit_of, n, self.x, self.v, self.rad, self.u0,
-                               self._u_eff, self.tpre, self.toff, self._e, self.ids, self.tri,
-                               self.rho)
+            self.n = K.compact(self._exit_of, n, *self._rows())
         self.steps += 1
         self.t = self.steps * dt  # no drift from summing dt
         self.timers.forces += t1 - t0

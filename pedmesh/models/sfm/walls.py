@@ -219,11 +219,12 @@ def clearance_factor(mesh: TriMesh, clearance: float) -> np.ndarray:
     route mesh resolves (:mod:`pedmesh.mesh.route_mesh` grades it along the walls)."""
     import shapely
 
+    from ...mesh.triangulate import _nearest_distance
+
     walls = mesh.edges[mesh.wall_edges()]
     if len(walls) == 0:
         return np.ones(mesh.n_points)
-    tree = shapely.STRtree(shapely.linestrings(mesh.points[walls]))
-    (_, _), d = tree.query_nearest(shapely.points(mesh.points), return_distance=True,
-                                   all_matches=False)
+    d = _nearest_distance(shapely.STRtree(shapely.linestrings(mesh.points[walls])),
+                          mesh.points)
     s = np.clip(1.0 - np.asarray(d, float) / float(clearance), 0.0, 1.0)
     return 1.0 + ROUTE_WALL_COST * s * s
