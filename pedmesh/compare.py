@@ -107,7 +107,9 @@ def _outflow_total(res: RunResult, kernel: bool = False, window: float = 2.0):
         p = res.path / "outflow_kernel.csv"
         if not p.exists():
             return None
-        d = np.loadtxt(p, delimiter=",", skiprows=1, ndmin=2)
+        from .run.tables import read_number_table
+
+        d = read_number_table(p)[1]
         return d[:, 0], d[:, 1:].sum(axis=1)
     t, n = res.evacuation
     if len(t) < 2:

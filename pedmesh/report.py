@@ -268,17 +268,22 @@ class _Run:
 
     @cached_property
     def evacuation(self) -> tuple[np.ndarray, np.ndarray]:
+        """The evacuation curve; a note if evacuation.csv is missing (a run that failed
+        before its first step), :class:`ReportError` naming it if it cannot be read."""
+        if not (self.path / "evacuation.csv").exists():
+            self.notes.append("evacuation.csv is missing: no evacuation curve")
+            return np.zeros(0), np.zeros(0)
         try:
             return self.result.evacuation
-        except (OSError, ValueError, IndexError):
-            return np.zeros(0), np.zeros(0)
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
 
     @cached_property
     def outflow(self) -> tuple[np.ndarray, np.ndarray, list[str]]:
         try:
             return self.result.outflow
-        except (OSError, ValueError, IndexError):
-            return np.zeros(0), np.zeros((0, 0)), []
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
 
     @cached_property
     def exit_passages(self) -> dict[str, list[float]]:
@@ -287,10 +292,14 @@ class _Run:
         out: dict[str, list[float]] = {}
         if not p.exists():
             return out
-        for row in _read_csv_rows(p):
-            t = _float_or_none(row.get("t"))
-            if t is not None:
-                out.setdefault(row.get("exit", "?"), []).append(t)
+        from .run.tables import crossings_from_rows, read_rows
+
+        try:
+            _, names, times = crossings_from_rows(read_rows(p)[1], p)
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
+        for name, t in zip(names, times):
+            out.setdefault(name, []).append(float(t))
         return out
 
     @cached_property
@@ -318,8 +327,8 @@ class _Run:
         p = self.path / "pedestrians.pvd"
         try:
             return read_pvd_index(p) if p.exists() else []
-        except Exception:
-            return []
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
 
     def positions_at(self, t: float) -> np.ndarray | None:
         """Pedestrian positions [m] of the saved frame at ``t`` (particle models), None if
@@ -331,17 +340,17 @@ class _Run:
         k = int(np.argmin(np.abs(times - t)))
         if abs(times[k] - t) > 1e-6:
             return None
-        import pyvista as pv
+        from .io.vtk import read_vtp
 
         try:
-            m = pv.read(fr[k][1])
-        except Exception:
-            return None
-        if not m.n_points:
+            pts, data = read_vtp(fr[k][1])
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
+        if not len(pts):
             return np.zeros((0, 2))
-        if self.layout is not None and "piece" in m.point_data:
-            return self.layout.crowd(m.points, m.point_data["piece"])
-        return np.asarray(m.points)[:, :2]
+        if self.layout is not None and "piece" in data:
+            return self.layout.crowd(pts, data["piece"])
+        return np.asarray(pts)[:, :2]
 
     def exits(self) -> list[dict[str, Any]]:
         """Per exit: name, people, first and last passage [s] (None where unknown)."""
@@ -386,28 +395,23 @@ class _Frames:
 
     @classmethod
     def read(cls, run_dir: Path) -> "_Frames | None":
-        import pyvista as pv
-
-        from .io.vtk import read_pvd_index
+        """The frames of ``run_dir``; None if the run saved none; :class:`ReportError`
+        naming the file if its index or first frame cannot be read."""
+        from .io.vtk import read_pvd_index, read_vtu
 
         p = run_dir / "density.pvd"
         if not p.exists():
             return None
         try:
-            index = [(t, f) for t, f in read_pvd_index(p) if Path(f).exists()]
-        except Exception:
-            return None
-        if not index:
-            return None
-        try:
-            m = pv.read(index[0][1])
-            tri = _triangles(m)
-        except Exception:  # an unreadable frame (a run killed while writing it)
-            return None
+            index = read_pvd_index(p)
+            if not index:
+                return None
+            pts, tri, pd, cd = read_vtu(index[0][1])
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
         self = cls(np.array([t for t, _ in index], float), [f for _, f in index],
-                   np.asarray(m.points)[:, :2].copy(), tri,
-                   float(np.ptp(np.asarray(m.points)[:, 2])))
-        self._cache[0] = _cell_density(m, tri)
+                   np.asarray(pts)[:, :2].copy(), tri, float(np.ptp(np.asarray(pts)[:, 2])))
+        self._cache[0] = _cell_density(pd, cd, tri)
         return self
 
     @cached_property
@@ -425,16 +429,17 @@ class _Frames:
         differs from the first frame's)."""
         if k in self._cache:
             return self._cache[k]
-        import pyvista as pv
+        from .io.vtk import read_vtu
 
         try:
-            m = pv.read(self.paths[k])
-            rho = _cell_density(m, self.triangles if self.frame_triangles is None
-                                else self.frame_triangles)
-        except Exception:
-            rho = None
+            _, _, pd, cd = read_vtu(self.paths[k])
+        except PedmeshError as exc:
+            raise ReportError(str(exc)) from None
+        rho = _cell_density(pd, cd, self.triangles if self.frame_triangles is None
+                            else self.frame_triangles)
         if rho is not None and len(rho) != len(self.triangles):
-            rho = None
+            raise ReportError(f"{self.paths[k]}: {len(rho)} cells, the run's first frame "
+                              f"{len(self.triangles)}")
         if len(self._cache) < 4096:
             self._cache[k] = rho
         return rho
@@ -455,21 +460,14 @@ class _Frames:
         return best, when
 
 
-def _triangles(m) -> np.ndarray:
-    cells = m.cells_dict if hasattr(m, "cells_dict") else {}
-    tri = cells.get(5)  # VTK_TRIANGLE
-    if tri is None:
-        raise ReportError("density frames without triangles")
-    return np.asarray(tri, np.int64)
-
-
-def _cell_density(m, tri: np.ndarray) -> np.ndarray | None:
-    if "rho" in m.cell_data:
-        return np.asarray(m.cell_data["rho"], float)
-    if "density" in m.cell_data:
-        return np.asarray(m.cell_data["density"], float)
-    if "density" in m.point_data:
-        return np.asarray(m.point_data["density"], float)[tri].mean(axis=1)
+def _cell_density(pd: Mapping, cd: Mapping, tri: np.ndarray) -> np.ndarray | None:
+    """Cell density [ped/m^2] of a frame's point fields ``pd`` and cell fields ``cd``."""
+    if "rho" in cd:
+        return np.asarray(cd["rho"], float)
+    if "density" in cd:
+        return np.asarray(cd["density"], float)
+    if "density" in pd:
+        return np.asarray(pd["density"], float)[tri].mean(axis=1)
     return None
 
 

@@ -22,8 +22,10 @@ from typing import Mapping
 
 import numpy as np
 
-__all__ = ["mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter", "read_pvd_index",
-           "read_vtu", "read_vtp"]
+from ..errors import PedmeshError
+
+__all__ = ["FrameReadError", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
+           "read_pvd_index", "read_vtu", "read_vtp"]
 
 ArrayMap = Mapping[str, np.ndarray] | None
 
@@ -340,14 +342,58 @@ class PVDWriter:
         self._write_index()
 
 
+class FrameReadError(PedmeshError, OSError):
+    """A frame (``.vtu``, ``.vtp``) or index (``.pvd``) of a run folder is missing or
+    cannot be read; the message names the file and what is wrong with it."""
+
+
+def _read_xml(reader_class, path):
+    """The output of a VTK XML reader of ``path``, VTK's own error printing silenced (its
+    errors become one :class:`FrameReadError` naming the file)."""
+    from vtkmodules.vtkCommonCore import vtkCommand, vtkObject
+
+    path = Path(path)
+    if not path.is_file():
+        raise FrameReadError(f"{path}: missing (the run's index lists it)")
+    errors: list[str] = []
+    r = reader_class()
+    r.AddObserver(vtkCommand.ErrorEvent, lambda obj, ev: errors.append(ev))
+    shown = vtkObject.GetGlobalWarningDisplay()
+    vtkObject.GlobalWarningDisplayOff()  # (the XML parser reports on objects of its own)
+    try:
+        r.SetFileName(str(path))
+        r.Update()
+        ok = not errors and r.GetErrorCode() == 0
+    finally:
+        vtkObject.SetGlobalWarningDisplay(shown)
+    g = r.GetOutput()
+    if not ok or g is None:
+        raise FrameReadError(_unreadable(path))
+    return g
+
+
+def _unreadable(path: Path) -> str:
+    return (f"{path}: cannot be read ({Path(path).stat().st_size} bytes: cut short or not a "
+            "VTK XML file); rerun the run, or remove the frame's line from its .pvd")
+
+
 def read_pvd_index(path: str | Path) -> list[tuple[float, Path]]:
     """(time, absolute file path) of every frame listed in a ``.pvd`` file."""
     path = Path(path)
-    root = ET.parse(path).getroot()
-    return [
-        (float(ds.get("timestep")), path.parent / ds.get("file"))
-        for ds in root.iter("DataSet")
-    ]
+    try:
+        root = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise FrameReadError(f"{path}: missing") from None
+    except (OSError, ET.ParseError) as exc:
+        raise FrameReadError(f"{path}: cannot be read as a ParaView index ({exc})") from None
+    out = []
+    for k, ds in enumerate(root.iter("DataSet")):
+        try:
+            out.append((float(ds.get("timestep")), path.parent / ds.get("file")))
+        except (TypeError, ValueError):
+            raise FrameReadError(f"{path}: its DataSet {k} has no valid timestep and "
+                                 "file") from None
+    return out
 
 
 def _arrays(data, names) -> dict[str, np.ndarray]:
@@ -368,12 +414,9 @@ def read_vtu(path: str | Path, *, point_arrays=None, cell_arrays=None):
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
 
-    r = vtkXMLUnstructuredGridReader()
-    r.SetFileName(str(path))
-    r.Update()
-    g = r.GetOutput()
-    if g is None or g.GetPoints() is None:
-        raise OSError(f"could not read {path}")
+    g = _read_xml(vtkXMLUnstructuredGridReader, path)
+    if g.GetPoints() is None:
+        raise FrameReadError(_unreadable(path))
     pts = vtk_to_numpy(g.GetPoints().GetData()).copy()
     cells = g.GetCells()
     conn = vtk_to_numpy(cells.GetConnectivityArray())
@@ -391,12 +434,7 @@ def read_vtp(path: str | Path, *, arrays=None):
     from vtkmodules.util.numpy_support import vtk_to_numpy
     from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
-    r = vtkXMLPolyDataReader()
-    r.SetFileName(str(path))
-    r.Update()
-    g = r.GetOutput()
-    if g is None:
-        raise OSError(f"could not read {path}")
+    g = _read_xml(vtkXMLPolyDataReader, path)
     p = g.GetPoints()
     pts = vtk_to_numpy(p.GetData()).copy() if p is not None else np.zeros((0, 3))
     return pts, _arrays(g.GetPointData(), arrays)

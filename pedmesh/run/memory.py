@@ -15,6 +15,7 @@ import numpy as np
 from .._version import __version__
 from ..errors import PedmeshError
 from .output import _clean
+from .tables import crossings_from_rows
 
 __all__ = ["MemoryWriter", "MemoryResult"]
 
@@ -56,7 +57,8 @@ class MemoryWriter:
                     rows: Sequence[Sequence[Any] | str]) -> None:
         """Keep rows of a table (fields, or a CSV line as a string)."""
         self.tables.setdefault(name, (header, []))[1].extend(
-            next(csv.reader([r])) if isinstance(r, str) else list(r) for r in rows)
+            next(csv.reader([r])) if isinstance(r, str) else list(r)
+            for r in rows)
 
     def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
         self.density.append((float(t), copy.deepcopy(dict(point_data or {})),
@@ -102,7 +104,7 @@ class MemoryWriter:
         return MemoryResult(
             summary=self.summary, evacuation=(ev[:, 0], ev[:, 1]),
             outflow=(t_out, flows, list(self.exit_names)),
-            exit_times=np.array([float(r[2]) for r in exits if r], float),
+            exit_times=crossings_from_rows(exits)[2],
             density=self.density, pedestrians=self.pedestrians, trajectories=traj,
             frame_rate=self.frame_rate)
 

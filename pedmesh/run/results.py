@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import csv
-import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -13,24 +11,12 @@ import numpy as np
 
 from ..errors import PedmeshError
 from ..io.vtk import read_pvd_index
+from .tables import crossings_from_rows, read_number_table, read_rows
 
 __all__ = ["RunResult", "FINISHED_STATUSES"]
 
 #: the statuses of a run that ran to its end (everyone out, or t_end reached)
 FINISHED_STATUSES = ("finished", "stopped at t_end")
-
-
-def _csv(path: Path) -> tuple[list[str], np.ndarray]:
-    """(header, numbers) of a CSV file of numbers whose header may hold quoted names (an
-    exit name with a comma or a newline)."""
-    with open(path, encoding="utf-8", newline="") as f:
-        header = next(csv.reader(f), [])
-        with warnings.catch_warnings():  # a run stopped before its first row
-            warnings.simplefilter("ignore", UserWarning)
-            data = np.loadtxt(f, delimiter=",", ndmin=2)
-    if data.size == 0:
-        data = np.zeros((0, len(header)))
-    return header, data
 
 
 def _check_frame_mesh(path: Path, frame, mesh) -> None:
@@ -98,7 +84,7 @@ class RunResult:
     @cached_property
     def evacuation(self) -> tuple[np.ndarray, np.ndarray]:
         """(t [s], cumulative number out)."""
-        _, d = _csv(self.path / "evacuation.csv")
+        _, d = read_number_table(self.path / "evacuation.csv", 2)
         return d[:, 0], d[:, 1]
 
     @cached_property
@@ -107,7 +93,7 @@ class RunResult:
         p = self.path / "outflow.csv"
         if not p.exists():
             return np.zeros(0), np.zeros((0, 0)), []
-        h, d = _csv(p)
+        h, d = read_number_table(p)
         return d[:, 0], d[:, 1:], h[1:]
 
     @cached_property
@@ -116,9 +102,7 @@ class RunResult:
         p = self.path / "exits.csv"
         if not p.exists():
             return np.zeros(0)
-        with open(p, encoding="utf-8", newline="") as f:
-            rows = list(csv.reader(f))[1:]
-        return np.array([float(r[2]) for r in rows if r], float)
+        return crossings_from_rows(read_rows(p)[1], p)[2]
 
     @cached_property
     def density_frames(self) -> list[tuple[float, Path]]:

@@ -13,13 +13,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Iterable
 
 import numpy as np
 
 from ..analysis import safety as S
 from ..errors import PedmeshError
 from ..parameters import DEFAULTS as D
+from .tables import crossings_from_rows, read_number_table, read_rows
 
 __all__ = ["safety_measures", "safety_from_memory", "write_safety_vtu", "SAFETY_VTU",
            "SAFETY_KEYS", "LOS_SCALE"]
@@ -60,28 +61,6 @@ def _areas_centroids(points: np.ndarray, triangles: np.ndarray):
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
     areas = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     return areas, p.mean(axis=1)
-
-
-def _read_csv(path: Path) -> tuple[list[str], np.ndarray]:
-    import warnings
-
-    with open(path, encoding="utf-8") as f:
-        header = f.readline().strip().split(",")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # (numpy warns of a table with no rows)
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    return header, data.reshape(-1, len(header))
-
-
-def _crossings_from_rows(rows: Sequence[str]):
-    ids, names, times = [], [], []
-    for r in rows:
-        if r:
-            i, e, t = r.split(",")
-            ids.append(int(i))
-            names.append(e)
-            times.append(float(t))
-    return np.array(ids, np.int64), np.array(names, dtype=object), np.array(times, float)
 
 
 def _velocities(data: dict, n: int) -> np.ndarray:
@@ -133,12 +112,11 @@ def _from_folder(d: Path, mesh, summary: dict) -> _RunData:
     names: list[str] = []
     ot, of = np.zeros(0), np.zeros((0, 0))
     if (d / "outflow.csv").exists():
-        h, data = _read_csv(d / "outflow.csv")
+        h, data = read_number_table(d / "outflow.csv")
         names, ot, of = h[1:], data[:, 0], data[:, 1:]
     crossings = None
     if particle and (d / "exits.csv").exists():
-        crossings = _crossings_from_rows(
-            (d / "exits.csv").read_text(encoding="utf-8").splitlines()[1:])
+        crossings = crossings_from_rows(read_rows(d / "exits.csv")[1], d / "exits.csv")
     R = float((summary.get("parameters") or {}).get("R") or D["R"])
     return _RunData(np.array(ts, float), points, triangles, np.array(dens), particle, peds,
                     list(names), crossings, (ot, of), R)
@@ -161,7 +139,7 @@ def _from_memory(writer, mesh, R: float) -> _RunData:
     of = np.array([r[1] for r in rows], float).reshape(len(rows), len(writer.exit_names))
     crossings = None
     if particle and "exits.csv" in writer.tables:
-        crossings = _crossings_from_rows(writer.tables["exits.csv"][1])
+        crossings = crossings_from_rows(writer.tables["exits.csv"][1])
     return _RunData(np.array([f[0] for f in writer.density], float),
                     np.asarray(mesh.points)[:, :2], tri, dens, particle, peds,
                     list(writer.exit_names), crossings, (ot, of), R)

@@ -1,0 +1,114 @@
+"""The second fault sweep (issue 48): each defect it found, as a test that failed before
+its fix."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import pedmesh
+from pedmesh.cli import main
+from pedmesh.run import RunResult
+
+#: exit names a user may well write: quotes, a comma, a newline, non-ASCII
+NAMES = ('Door "A"', "Door A, north", 'Tür "Ä",\nnord')
+
+
+def _room(tmp_path: Path, names=NAMES[:2], n: int = 20) -> Path:
+    room = {
+        "format": "pedmesh-room", "version": 1, "name": "r", "units": "m",
+        "outline": [[0, 0], [10, 0], [10, 6], [0, 6]],
+        "exits": [{"name": names[0], "polyline": [[10, 2], [10, 4]]},
+                  {"name": names[1], "polyline": [[0, 2], [0, 4]]}],
+        "start_areas": [{"name": "crowd", "polygon": [[3, 1], [7, 1], [7, 5], [3, 5]],
+                         "count": n}],
+    }
+    p = tmp_path / "room.json"
+    p.write_text(json.dumps(room), encoding="utf-8")
+    return p
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("pedmesh: error:") and "internal error" not in err[0], err
+    return err[0]
+
+
+# ---------------------------------------------------------------- names are data
+@pytest.mark.parametrize("names", [NAMES[:2], NAMES[1:]])
+@pytest.mark.parametrize("model", ["sfm", "eos"])
+def test_exit_names_round_trip_into_the_safety_record_and_report(tmp_path, names, model):
+    room = _room(tmp_path, names)
+    out = tmp_path / "run"
+    assert main(["run", str(room), "--model", model, "--out", str(out), "-q",
+                 "--t-end", "40"]) == 0
+    s = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    safety = s["safety"]
+    assert "error" not in safety, safety
+    assert set(safety["exits"]) == set(names)
+    # (a continuum's passages are its sampled outflow integrated: within a person of 20)
+    assert sum(e["people"] for e in safety["exits"].values()) == pytest.approx(
+        20, abs=0.01 if model == "sfm" else 1.0)
+    assert (out / "safety.vtu").is_file()
+    res = RunResult.load(out)
+    assert res.outflow[2] == list(names)
+    html = tmp_path / "r.html"
+    assert main(["report", str(out), "-o", str(html)]) == 0
+    text = html.read_text(encoding="utf-8")
+    assert "&quot;&quot;" not in text and '""' not in text.replace('=""', "")
+
+
+def test_exit_names_round_trip_in_memory(tmp_path):
+    res = pedmesh.simulate(_room(tmp_path, NAMES[1:]), model="sfm", t_end=40.0)
+    safety = res.summary["safety"]
+    assert "error" not in safety, safety
+    assert set(safety["exits"]) == set(NAMES[1:])
+    assert np.isfinite(res.exit_times).all() and len(res.exit_times) == 20
+
+
+# ---------------------------------------------------------------- readers name the file
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("small")
+    out = tmp / "run"
+    assert main(["run", str(_room(tmp)), "--out", str(out), "-q", "--t-end", "40"]) == 0
+    return out
+
+
+def _damaged(small_run: Path, tmp_path: Path, how: str) -> tuple[Path, Path]:
+    import shutil
+
+    d = tmp_path / how
+    shutil.copytree(small_run, d)
+    if how == "evacuation garbage":
+        with open(d / "evacuation.csv", "a") as f:
+            f.write("not,a number\n")
+        return d, d / "evacuation.csv"
+    f = sorted((d / "density").glob("*.vtu"))[0 if how.startswith("first") else 2]
+    if how.endswith("truncated"):
+        f.write_bytes(f.read_bytes()[:300])
+    elif how.endswith("garbage"):
+        f.write_text("not a frame")
+    else:
+        f.unlink()
+    return d, f
+
+
+@pytest.mark.parametrize("how", ["first truncated", "frame truncated", "frame garbage",
+                                 "frame deleted", "evacuation garbage"])
+@pytest.mark.parametrize("command", ["report", "animate"])
+def test_readers_name_the_broken_file(small_run, tmp_path, capfd, how, command):
+    # (capfd: VTK's own error printing, on the C level, must not reach stderr either)
+    d, broken = _damaged(small_run, tmp_path, how)
+    capfd.readouterr()
+    out = tmp_path / ("r.html" if command == "report" else "a.gif")
+    args = [command, str(d), "-o", str(out)] + (["--max-frames", "40"]
+                                                  if command == "animate" else [])
+    assert main(args) == 2
+    line = _one_line_error(capfd)
+    assert str(broken) in line
+    assert not out.exists()
