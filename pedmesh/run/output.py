@@ -33,7 +33,6 @@ import math
 import numbers
 import os
 import re
-import shutil
 import sqlite3
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -92,6 +91,8 @@ RUN_FILES = ("summary.json", "evacuation.csv", "outflow.csv", "outflow_kernel.cs
 LOCK = ".lock"
 #: a frame's temporary file in density/ or pedestrians/ (see pedmesh.io.vtk)
 _FRAME_TEMP = re.compile(r"(density|pedestrians)_\d{6,}\.part\.(vtu|vtp)")
+#: a frame of density/ or pedestrians/, or its temporary file
+_FRAME_FILE = re.compile(r"(density|pedestrians)_\d{6,}(\.part)?\.(vtu|vtp)")
 #: [bytes] disk space held in .lock while a run writes, given back to write the final
 #: summary on a full disk
 RESERVE_BYTES = 64 * 1024
@@ -165,6 +166,21 @@ def _atomic_write(path: Path, text: str) -> None:
 
 def _is_run_file(name: str) -> bool:
     return name in RUN_FILES
+
+
+def _remove_frames(sub: Path) -> None:
+    """Remove the frames an earlier run wrote into its folder ``density/`` or
+    ``pedestrians/`` (named ``density_000012.vtu``, ``pedestrians_000012.vtp`` and their
+    ``.part`` forms), and the folder if nothing else is in it: a file of the user's there
+    stays."""
+    for e in sub.iterdir():
+        if _FRAME_FILE.fullmatch(e.name) and e.name.startswith(sub.name + "_") \
+                and (e.is_file() or e.is_symlink()):
+            e.unlink()
+    try:
+        sub.rmdir()
+    except OSError:  # not empty: the user's files stay, and so does the folder
+        pass
 
 
 _NUMBER = "a number"
@@ -329,7 +345,7 @@ def claim_run_dir(out_dir: str | Path):
         for e in entries:  # the earlier run's outputs go; other files stay
             if _is_run_file(e.name):
                 if e.is_dir() and not e.is_symlink():
-                    shutil.rmtree(e)
+                    _remove_frames(e)
                 else:
                     e.unlink()
     except BaseException:

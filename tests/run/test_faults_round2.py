@@ -112,3 +112,28 @@ def test_readers_name_the_broken_file(small_run, tmp_path, capfd, how, command):
     line = _one_line_error(capfd)
     assert str(broken) in line
     assert not out.exists()
+
+
+# ---------------------------------------------------------------- a rerun's clean-up
+def test_rerun_keeps_the_users_files_in_the_run_subfolders(tmp_path):
+    room, out = _room(tmp_path), tmp_path / "run"
+    assert main(["run", str(room), "--out", str(out), "-q", "--t-end", "8"]) == 0
+    old = sorted(p.name for p in (out / "density").glob("density_*.vtu"))
+    assert len(old) >= 5
+    (out / "density" / "my_notes.txt").write_text("mine")
+    (out / "pedestrians" / "pedestrians_notes.vtp").write_text("mine too")
+    (out / "my_notes.txt").write_text("top level")
+    assert main(["run", str(room), "--out", str(out), "-q", "--t-end", "2"]) == 0
+    assert (out / "density" / "my_notes.txt").read_text() == "mine"
+    assert (out / "pedestrians" / "pedestrians_notes.vtp").read_text() == "mine too"
+    assert (out / "my_notes.txt").read_text() == "top level"
+    new = sorted(p.name for p in (out / "density").glob("density_*.vtu"))
+    assert 0 < len(new) < len(old)  # the earlier run's later frames are gone
+    from pedmesh.io.vtk import read_pvd_index
+
+    assert sorted(p.name for _, p in read_pvd_index(out / "density.pvd")) == new
+    # without the user's files the folders are removed and written anew as before
+    (out / "density" / "my_notes.txt").unlink()
+    assert main(["run", str(room), "--out", str(out), "-q", "--t-end", "1"]) == 0
+    assert sorted(p.name for p in (out / "density").iterdir()) == sorted(
+        p.name for _, p in read_pvd_index(out / "density.pvd"))
