@@ -28,6 +28,8 @@ for the continuum models).
 
 from __future__ import annotations
 
+from numbers import Real
+from os import PathLike
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -37,8 +39,55 @@ from .parameters import DEFAULT_T_END_S
 __all__ = ["simulate", "build"]
 
 
+def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
+                     out_dir=None, quiet=True) -> None:
+    """One-line :class:`~pedmesh.errors.ParameterError` for an argument of :func:`simulate`
+    or :func:`build` of the wrong kind, naming it, before anything is built."""
+    from .mesh import SurfaceMesh, TriMesh
+
+    if mesh is not None and not isinstance(mesh, (TriMesh, SurfaceMesh)):
+        hint = (f"; a mesh file ('{mesh}') is not read: give mesh_options (e.g. "
+                "{'max_area': 0.5}) and pedmesh meshes the room" if isinstance(mesh, (str, Path))
+                else "")
+        raise ParameterError("mesh must be a TriMesh (pedmesh.mesh.triangulate) or a "
+                             "building's SurfaceMesh (pedmesh.mesh.triangulate_building), "
+                             f"got {type(mesh).__name__}{hint}")
+    if params is not None:
+        if not isinstance(params, Mapping):
+            raise ParameterError("params must be a mapping of parameter names to values, "
+                                 f"e.g. {{'A': 2000.0}}; got {type(params).__name__} "
+                                 f"{params!r:.60}")
+        bad = [k for k in params if not isinstance(k, str)]
+        if bad:
+            raise ParameterError(f"params: parameter names are text, got {bad[0]!r}")
+    if mesh_options is not None:
+        if not isinstance(mesh_options, Mapping):
+            raise ParameterError("mesh_options must be a mapping of option names to values, "
+                                 f"e.g. {{'max_area': 0.5}}; got {type(mesh_options).__name__}")
+        known = _MESH_OPTIONS
+        bad = [k for k in mesh_options if k not in known]
+        if bad:
+            raise ParameterError(f"mesh_options: unknown option {bad[0]!r} (options: "
+                                 f"{', '.join(known)})")
+    if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, Real)):
+        raise ParameterError(f"t_end must be a number of seconds, got {type(t_end).__name__} "
+                             f"{t_end!r:.40}")
+    if out_dir is not None and not isinstance(out_dir, (str, PathLike)):
+        raise ParameterError(f"out_dir must be a folder's path (str or pathlib.Path), got "
+                             f"{type(out_dir).__name__} {out_dir!r:.40}")
+    if quiet not in (True, False):
+        raise ParameterError(f"quiet must be True or False, got {quiet!r:.40}")
+
+
+#: the mesh options of :func:`simulate` and :func:`build` (those of
+#: :func:`pedmesh.mesh.triangulate`; a building takes them but exit_size and size)
+_MESH_OPTIONS = ("max_area", "min_angle", "feature_area", "exit_size", "size_growth", "size",
+                 "max_refinements", "max_cells")
+
+
 def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
                    max_people: int | None = None):
+    from .errors import RoomFileError
     from .geometry import Building, Room
     from .io import load_room
     from .mesh import triangulate
@@ -46,8 +95,10 @@ def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
     from .run.driver import check_crowd
 
     geometry = None
-    if isinstance(room, (str, Path)):
+    if isinstance(room, (str, PathLike)):
         geometry = str(room)
+        if not Path(room).exists():
+            raise RoomFileError(f"{room}: no such room file")
         room = load_room(room)
     elif not isinstance(room, (Room, Building)):
         raise ParameterError(f"room must be a Room, a Building or the path of a room file, "
@@ -80,6 +131,7 @@ def build(room, model: str = "sfm", *, preset: str | None = None,
     options its registry entry lists (e.g. ``seed`` for the social force model)."""
     from .run.driver import build_model
 
+    _check_arguments(mesh=mesh, params=params, mesh_options=mesh_options)
     room, mesh, _ = _room_and_mesh(room, mesh, mesh_options, max_people)
     return build_model(room, mesh, model, preset=preset, overrides=params,
                        max_people=max_people, **options)
@@ -96,20 +148,32 @@ def simulate(room, model: str = "sfm", *, preset: str | None = None,
     there (None: keep everything in memory); ``quiet``: no progress bar; ``max_people``:
     the largest crowd taken (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`; a
     larger one is refused before anything is allocated). Errors are
-    :class:`~pedmesh.errors.PedmeshError` with one line naming the problem."""
-    from .run.driver import execute, plan_run
+    :class:`~pedmesh.errors.PedmeshError` with one line naming the problem. Ctrl-C stops
+    the run after its current step and raises :class:`~pedmesh.run.driver.RunInterrupted`
+    (a ``KeyboardInterrupt``) whose ``result`` is the result up to then."""
+    from .run.driver import RunInterrupted, execute, plan_run
     from .run.memory import MemoryWriter
     from .run.output import RunWriter
     from .run.results import RunResult
 
+    _check_arguments(mesh=mesh, params=params, mesh_options=mesh_options, t_end=t_end,
+                     out_dir=out_dir, quiet=quiet)
     room, mesh, geometry = _room_and_mesh(room, mesh, mesh_options, max_people)
     plan = plan_run(room, mesh, model, overrides=params, t_end=t_end, geometry=geometry,
                     mesh_options=dict(mesh_options or {}), model_options=options,
                     preset=preset, max_people=max_people)
     if out_dir is None:
         writer = MemoryWriter(plan.header, exit_names=mesh.exit_names)
-        execute(plan, writer, quiet=quiet, where="the result in memory")
+        try:
+            execute(plan, writer, quiet=quiet, where="the exception's .result")
+        except RunInterrupted as exc:  # (Ctrl-C) the partial result goes with it
+            exc.result = writer.result()
+            raise
         return writer.result()
     writer = RunWriter(Path(out_dir), plan.header, exit_names=mesh.exit_names)
-    execute(plan, writer, quiet=quiet, where=str(out_dir))
+    try:
+        execute(plan, writer, quiet=quiet, where=str(out_dir))
+    except RunInterrupted as exc:
+        exc.result = RunResult.load(out_dir)
+        raise
     return RunResult.load(out_dir)

@@ -73,16 +73,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
+    except KeyboardInterrupt as exc:  # (before PedmeshError: a RunInterrupted is both)
+        if debug:
+            raise
+        print(f"pedmesh: {exc}" if str(exc) else "pedmesh: interrupted", file=sys.stderr)
+        return 130
     except PedmeshError as exc:
         if debug:
             raise
         print(f"pedmesh: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        if debug:
-            raise
-        print("pedmesh: interrupted", file=sys.stderr)
-        return 130
     except OSError as exc:
         if debug:
             raise

@@ -32,13 +32,20 @@ __all__ = ["run_model", "build_model", "plan_run", "execute", "RunPlan", "run_se
 MAX_PEOPLE = 1_000_000
 
 
-class RunInterrupted(Exception):
-    """A run stopped by Ctrl-C or SIGTERM; the output written so far is kept."""
+class RunInterrupted(PedmeshError, KeyboardInterrupt):
+    """A run stopped by Ctrl-C or SIGTERM; the output written so far is kept.
 
-    def __init__(self, t: float, out_dir: Path | str) -> None:
+    It is a :class:`KeyboardInterrupt` (what caused it), so a script's ``except
+    KeyboardInterrupt`` sees it, and a :class:`~pedmesh.errors.PedmeshError`. ``t`` [s]:
+    the time reached; ``out_dir``: where the results are; ``result``: the partial result
+    (set by :func:`pedmesh.simulate`: the in-memory result, or the run folder's
+    :class:`~pedmesh.run.results.RunResult`; None elsewhere)."""
+
+    def __init__(self, t: float, out_dir: Path | str, result: Any = None) -> None:
         super().__init__(f"interrupted at t = {t:.2f} s; results up to then are in {out_dir}")
         self.t = t
         self.out_dir = out_dir
+        self.result = result
 
 
 def run_settings(model: str, *, overrides: Mapping[str, Any] | None = None, t_end: float,

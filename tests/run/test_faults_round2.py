@@ -137,3 +137,66 @@ def test_rerun_keeps_the_users_files_in_the_run_subfolders(tmp_path):
     assert main(["run", str(room), "--out", str(out), "-q", "--t-end", "1"]) == 0
     assert sorted(p.name for p in (out / "density").iterdir()) == sorted(
         p.name for _, p in read_pvd_index(out / "density.pvd"))
+
+
+# ---------------------------------------------------------------- Ctrl-C in the API
+@pytest.mark.parametrize("on_disk", [False, True])
+def test_ctrl_c_in_simulate_carries_the_partial_result(tmp_path, on_disk):
+    import _thread
+    import threading
+
+    from pedmesh.run import RunInterrupted
+
+    room = tmp_path / "slow.json"  # 150 people, one 1 m door: about 50 s to empty
+    room.write_text(json.dumps({
+        "format": "pedmesh-room", "version": 1, "name": "slow", "units": "m",
+        "outline": [[0, 0], [20, 0], [20, 10], [0, 10]],
+        "exits": [{"name": "d", "polyline": [[20, 4.5], [20, 5.5]]}],
+        "start_areas": [{"name": "crowd", "polygon": [[1, 1], [9, 1], [9, 9], [1, 9]],
+                         "count": 150}]}))
+    pedmesh.simulate(room, model="sfm", t_end=0.5)  # (compiled kernels loaded)
+    timer = threading.Timer(1.0, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt) as info:
+            # (dt 1e-3: slow enough to be interrupted long before its end)
+            pedmesh.simulate(room, model="sfm", t_end=200.0, params={"dt": 1e-3},
+                             out_dir=tmp_path / "run" if on_disk else None)
+    finally:
+        timer.cancel()
+    exc = info.value
+    assert isinstance(exc, RunInterrupted) and isinstance(exc, pedmesh.PedmeshError)
+    res = exc.result
+    assert res is not None and res.summary["status"] == "interrupted"
+    t, n = res.evacuation
+    assert len(t) > 0 and t[-1] == pytest.approx(exc.t, abs=1.0)
+    assert 0 < exc.t < 200.0
+
+
+# ---------------------------------------------------------------- the API's arguments
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(mesh="mesh.vtu"), ["mesh must be", "mesh_options"]),
+    (dict(params=["A", 1]), ["params must be a mapping"]),
+    (dict(params={1: 2.0}), ["parameter names are text"]),
+    (dict(t_end="10"), ["t_end", "str"]),
+    (dict(t_end=True), ["t_end", "bool"]),
+    (dict(out_dir=123), ["out_dir", "int"]),
+    (dict(mesh_options={"colour": 1}), ["mesh_options", "'colour'", "max_area"]),
+    (dict(mesh_options=[1]), ["mesh_options must be a mapping"]),
+    (dict(quiet="no"), ["quiet"]),
+])
+def test_simulate_checks_its_arguments_at_the_door(tmp_path, kwargs, words):
+    with pytest.raises(pedmesh.PedmeshError) as info:
+        pedmesh.simulate(_room(tmp_path), **{"t_end": 1.0, **kwargs})
+    assert all(w in str(info.value) for w in words), str(info.value)
+    assert "\n" not in str(info.value)
+    if "mesh" in kwargs or "params" in kwargs or "mesh_options" in kwargs:
+        with pytest.raises(pedmesh.PedmeshError):
+            pedmesh.build(_room(tmp_path), **kwargs)
+
+
+def test_simulate_names_a_missing_room_file(tmp_path):
+    with pytest.raises(pedmesh.PedmeshError, match="no such room file"):
+        pedmesh.simulate("this is not a room")
+    with pytest.raises(pedmesh.PedmeshError, match="no such room file"):
+        pedmesh.simulate(tmp_path / "missing.json")
