@@ -141,13 +141,15 @@ def simulate(room, model: str = "sfm", *, preset: str | None = None,
              params: Mapping[str, Any] | None = None, out_dir: str | Path | None = None,
              t_end: float = DEFAULT_T_END_S, mesh=None,
              mesh_options: Mapping[str, Any] | None = None,
-             quiet: bool = True, max_people: int | None = None, **options: Any):
+             quiet: bool = True, max_people: int | None = None,
+             max_steps: int | None = None, **options: Any):
     """Run ``model`` on ``room`` until everyone has left or ``t_end`` [s] and return the
     result (see the module docstring). ``params``: parameter values by name (see ``pedmesh
     presets`` and the parameter tables of the docs); ``out_dir``: write the run folder
     there (None: keep everything in memory); ``quiet``: no progress bar; ``max_people``:
     the largest crowd taken (default 1,000,000, :data:`pedmesh.run.driver.MAX_PEOPLE`; a
-    larger one is refused before anything is allocated). Errors are
+    larger one is refused before anything is allocated); ``max_steps``: the most time
+    steps taken (default 10,000,000, :data:`pedmesh.run.driver.MAX_STEPS`). Errors are
     :class:`~pedmesh.errors.PedmeshError` with one line naming the problem. Ctrl-C stops
     the run after its current step and raises :class:`~pedmesh.run.driver.RunInterrupted`
     (a ``KeyboardInterrupt``) whose ``result`` is the result up to then."""
@@ -161,7 +163,7 @@ def simulate(room, model: str = "sfm", *, preset: str | None = None,
     room, mesh, geometry = _room_and_mesh(room, mesh, mesh_options, max_people)
     plan = plan_run(room, mesh, model, overrides=params, t_end=t_end, geometry=geometry,
                     mesh_options=dict(mesh_options or {}), model_options=options,
-                    preset=preset, max_people=max_people)
+                    preset=preset, max_people=max_people, max_steps=max_steps)
     if out_dir is None:
         writer = MemoryWriter(plan.header, exit_names=mesh.exit_names)
         try:

@@ -241,8 +241,26 @@ class _Run:
 
     @cached_property
     def safety(self) -> dict | None:
+        """summary.json's crowd-safety record; None if there is none or it holds the error
+        that stopped it (:attr:`safety_missing` says why)."""
         sf = self.summary.get("safety")
-        return sf if isinstance(sf, dict) else None
+        return sf if isinstance(sf, dict) and "error" not in sf else None
+
+    @cached_property
+    def safety_missing(self) -> str:
+        """Why the run has no crowd-safety record, in words ('' if it has one)."""
+        sf = self.summary.get("safety")
+        if self.safety is not None:
+            return ""
+        if isinstance(sf, dict) and sf.get("error"):
+            return f"they could not be computed: {sf['error']}"
+        status = self.status
+        if status == "running":
+            return ("the run is still running, so they are not computed yet (they are when "
+                    "it ends)")
+        if status in ("interrupted", "failed"):
+            return f"the run was {status} before they were computed"
+        return "the run was made before pedmesh recorded them in summary.json"
 
     @cached_property
     def room(self):
@@ -658,8 +676,7 @@ def _run_sentences(run: _Run) -> list[str]:
             out.append(f"The crowd pressure peaked at {_num(cp['max'], 3)} "
                        f"{cp.get('unit') or ''} at t = {_sec(cp.get('t'), '?')}.")
     else:
-        msg = "The crowd-safety measures are not available for this run (it was made " \
-              "before pedmesh recorded them)"
+        msg = f"The crowd-safety measures are not available for this run ({run.safety_missing})"
         fr = run.frames
         if fr is not None:
             peak, when = fr.peak
@@ -1216,10 +1233,10 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
 
 def _safety_table(runs: Sequence[_Run]) -> str:
     if all(r.safety is None for r in runs):
-        return ('<p class="na">Crowd-safety measures: <b>not available</b> (the run'
-                + ("s were" if len(runs) > 1 else " was")
-                + " made before pedmesh recorded them in summary.json). The maps above are "
-                "computed from the saved density frames.</p>")
+        why = "; ".join(dict.fromkeys((f"{_esc(r.label)}: " if len(runs) > 1 else "")
+                                      + _esc(r.safety_missing) for r in runs))
+        return ('<p class="na">Crowd-safety measures: <b>not available</b> (' + why
+                + "). The maps above are computed from the saved density frames.</p>")
     per = [dict(_safety_rows(r.safety)) if r.safety is not None else None for r in runs]
     keys: list[str] = []
     for d in per:
@@ -1228,7 +1245,8 @@ def _safety_table(runs: Sequence[_Run]) -> str:
                 keys.append(k)
     if len(runs) == 1:
         return _table(["measure", "value"], [(k, per[0][k]) for k in keys], "safety")
-    body = [[k] + [(d.get(k, "–") if d is not None else "not available") for d in per]
+    body = [[k] + [(d.get(k, "–") if d is not None else
+                    f'not available ({_esc(r.safety_missing)})') for d, r in zip(per, runs)]
             for k in keys]
     return _table(["measure"] + [_esc(r.label) for r in runs], body, "safety")
 

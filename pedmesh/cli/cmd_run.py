@@ -75,6 +75,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="(particle models) keep the initial routes instead of re-solving "
                         "them from the density")
     add_max_people_arg(p)
+    from ..run.driver import MAX_STEPS
+
+    p.add_argument("--max-steps", type=int, default=None, metavar="N",
+                   help=f"refuse a run of more than N time steps (t_end / dt), before it "
+                        f"starts (default: {MAX_STEPS:,})")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
@@ -112,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
                           quiet=args.quiet, geometry=str(args.geometry),
                           mesh_options=mesh_options(args),
                           model_options=model_options, preset=args.preset,
-                          max_people=args.max_people)
+                          max_people=args.max_people, max_steps=args.max_steps)
     except RunInterrupted as exc:
         print(f"pedmesh: {exc}", file=sys.stderr)
         return 130

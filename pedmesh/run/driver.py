@@ -23,13 +23,17 @@ from ..models.protocol import RunModel
 
 __all__ = ["run_model", "build_model", "plan_run", "execute", "RunPlan", "run_settings",
            "resolve_parameters", "check_options", "check_room_mesh", "check_crowd",
-           "MAX_PEOPLE", "RunInterrupted", "request_stop", "stop_requested",
+           "MAX_PEOPLE", "MAX_STEPS", "RunInterrupted", "request_stop", "stop_requested",
            "stop_on_signals"]
 
 #: [ped] the largest crowd a run takes unless told otherwise (``--max-people``,
 #: ``max_people=`` in Python): a start area with a typo in its spacing or count would
 #: otherwise allocate gigabytes before anything is written
 MAX_PEOPLE = 1_000_000
+#: the most time steps a run takes unless told otherwise (``--max-steps``, ``max_steps=`` in
+#: Python): a t_end or dt off by powers of ten would otherwise start a run that never ends
+#: (10 million steps: about 3 h at 1 ms a step; Example 2 takes 12,000)
+MAX_STEPS = 10_000_000
 
 
 class RunInterrupted(PedmeshError, KeyboardInterrupt):
@@ -105,6 +109,26 @@ def check_crowd(room, max_people: int | None = None) -> float:
     return n
 
 
+def check_steps(t_end: float, parameters: Mapping[str, Any],
+                max_steps: int | None = None) -> float:
+    """The number of time steps ``t_end`` [s] takes at the run's fixed time step ``dt`` [s]
+    (a continuum's step follows its CFL condition: 0, not checked); a one-line error if it
+    is above ``max_steps`` (None: :data:`MAX_STEPS`)."""
+    limit = MAX_STEPS if max_steps is None else max_steps
+    if isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 1:
+        raise ParameterError(f"max_steps must be a positive whole number, got {limit!r}")
+    dt = parameters.get("dt")
+    if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not dt > 0:
+        return 0.0
+    steps = float(t_end) / float(dt)
+    if steps > limit:
+        raise ParameterError(
+            f"t_end {t_end:g} s at dt {dt:g} s is {steps:.3g} time steps, more than the limit "
+            f"of {int(limit):,}; lower t_end (--t-end) or raise dt, or give --max-steps N "
+            "(max_steps=N in Python) to run this long")
+    return steps
+
+
 def check_options(entry: ModelEntry, options: Mapping[str, Any]) -> None:
     """A one-line error for a model option the model does not take."""
     unknown = sorted(set(options) - entry.options)
@@ -173,7 +197,7 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
               geometry: str | None = None, mesh_options: dict[str, Any] | None = None,
               model_options: dict[str, Any] | None = None,
               preset: str | None = None, max_people: int | None = None,
-              safety: bool = True) -> dict[str, Any]:
+              safety: bool = True, max_steps: int | None = None) -> dict[str, Any]:
     """Run ``model`` on ``mesh`` until everyone has left or ``t_end`` [s].
 
     The run owns ``out_dir`` (see :mod:`pedmesh.run.output`): it refuses a non-empty
@@ -185,11 +209,12 @@ def run_model(room, mesh, model: str, *, overrides: dict[str, float] | None = No
     is written first, with status ``interrupted`` or ``failed`` and the error. A crowd
     above ``max_people`` (:func:`check_crowd`) is refused before anything is written.
     ``safety``: compute the crowd-safety measures at the end (see :class:`RunPlan`).
+    More time steps than ``max_steps`` (:func:`check_steps`) are refused the same way.
     """
     out = Path(out_dir)
     plan = plan_run(room, mesh, model, overrides=overrides, t_end=t_end, geometry=geometry,
                     mesh_options=mesh_options, model_options=model_options, preset=preset,
-                    max_people=max_people, safety=safety)
+                    max_people=max_people, safety=safety, max_steps=max_steps)
     writer = RunWriter(out, plan.header, exit_names=mesh.exit_names)
     return execute(plan, writer, quiet=quiet, where=str(out))
 
@@ -216,7 +241,7 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
              mesh_options: Mapping[str, Any] | None = None,
              model_options: Mapping[str, Any] | None = None,
              preset: str | None = None, max_people: int | None = None,
-             safety: bool = True) -> RunPlan:
+             safety: bool = True, max_steps: int | None = None) -> RunPlan:
     """Check a run's request and resolve its parameters (see :func:`run_model`); the crowd's
     size is checked against ``max_people`` (:func:`check_crowd`) before anything big is
     allocated."""
@@ -230,6 +255,7 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
     overrides = dict(overrides or {})
     # the settings record the preset's name and the overrides
     preset, parameters = resolve_parameters(entry, room, preset=preset, overrides=overrides)
+    check_steps(t_end, parameters, max_steps)
     model_options = dict(model_options or {})
     check_options(entry, model_options)
     header = {

@@ -200,3 +200,51 @@ def test_simulate_names_a_missing_room_file(tmp_path):
         pedmesh.simulate("this is not a room")
     with pytest.raises(pedmesh.PedmeshError, match="no such room file"):
         pedmesh.simulate(tmp_path / "missing.json")
+
+
+# ---------------------------------------------------------------- absurd step counts
+def test_absurd_step_counts_are_refused_before_the_run(tmp_path, capsys):
+    room, out = _room(tmp_path), tmp_path / "run"
+    assert main(["run", str(room), "--out", str(out), "--t-end", "1e12",
+                 "--param", "dt=1e-4"]) == 2
+    line = _one_line_error(capsys)
+    assert "1e+16 time steps" in line and "--max-steps" in line
+    assert not out.exists()
+    with pytest.raises(pedmesh.PedmeshError, match="max_steps=N"):
+        pedmesh.simulate(room, t_end=1e12, params={"dt": 1e-4})
+    # allowed when asked for
+    res = pedmesh.simulate(room, t_end=30.0, params={"dt": 1e-3}, max_steps=30_000)
+    assert res.summary["status"] == "finished"
+    with pytest.raises(pedmesh.PedmeshError, match="30,000 time steps|3e\\+04 time steps"):
+        pedmesh.simulate(room, t_end=30.0, params={"dt": 1e-3}, max_steps=29_999)
+
+
+# ---------------------------------------------------------------- why no safety measures
+@pytest.mark.parametrize("case", ["error", "running", "old"])
+def test_report_says_why_the_safety_measures_are_missing(small_run, tmp_path, case):
+    import fcntl
+    import shutil
+
+    d = tmp_path / case
+    shutil.copytree(small_run, d)
+    s = json.loads((d / "summary.json").read_text())
+    if case == "error":
+        s["safety"] = {"error": "ValueError: boom"}
+        want = "could not be computed: ValueError: boom"
+    else:
+        s.pop("safety")
+        want = "still running" if case == "running" else "made before pedmesh recorded"
+        if case == "running":
+            s["status"] = "running"
+    (d / "summary.json").write_text(json.dumps(s))
+    lock = open(d / ".lock", "a+")
+    try:
+        if case == "running":  # (a live run holds its lock)
+            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        out = tmp_path / "r.html"
+        assert main(["report", str(d), "-o", str(out)]) == 0
+    finally:
+        lock.close()
+    text = out.read_text(encoding="utf-8")
+    assert want in text
+    assert "made before pedmesh" not in text or case == "old"
