@@ -103,6 +103,9 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise PedmeshError(f"{run_dir}: no such run folder")
+    from .run.output import check_writable, write_error
+
+    check_writable(out)  # (before the minutes of drawing)
     frames = _Frames(run_dir)
     if frames.note:
         import sys
@@ -163,6 +166,9 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
             writer = animation.PillowWriter(fps=fps)
         anim.save(tmp, writer=writer, dpi=dpi)
         tmp.replace(out)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise write_error(out, exc) from None
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise

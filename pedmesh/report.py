@@ -34,6 +34,7 @@ import datetime as _dt
 import html
 import io
 import json
+import os
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -1618,14 +1619,19 @@ def write_report(folders: Sequence[str | Path], out: str | Path, *,
                  frames: int = DEFAULT_FRAMES, title: str | None = None) -> Path:
     """Write the report of ``folders`` (run, compare or ensemble folders) to the HTML file
     ``out`` and return its path (see :func:`build_report`)."""
-    from .run.output import _atomic_write
+    from .run.output import check_writable, write_error
 
     out = Path(out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise ReportError(f"{out}: the report is an HTML page; use a .html suffix")
+    check_writable(out)  # (before the minutes of reading and drawing)
     text = build_report(folders, frames=frames, title=title)
-    if out.parent and not out.parent.exists():
-        out.parent.mkdir(parents=True)
-    _atomic_write(out, text)
+    tmp = out.with_name(out.name + ".part")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, out)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise write_error(out, exc) from None
     return out
 

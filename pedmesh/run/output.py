@@ -77,7 +77,8 @@ except ImportError:  # pragma: no cover - not POSIX
 __all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "BrokenSummaryError",
            "OutputWriteError", "evacuation_times", "evacuation_times_from_curve",
            "file_sha256", "run_status", "read_summary", "load_summary", "summary_problem",
-           "RUN_FILES", "TEMP_FILES", "STATUSES", "RESERVE_BYTES"]
+           "RUN_FILES", "TEMP_FILES", "STATUSES", "RESERVE_BYTES", "check_writable",
+           "write_error"]
 
 #: pedmesh's own temporary files in a run folder (exact names); the frames' temporary
 #: files (``density_000012.part.vtu``) are inside ``density/`` and ``pedestrians/``
@@ -143,6 +144,31 @@ def _write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteErro
         code = getattr(exc, "errno", None)
         name = getattr(exc, "filename", None) or path
     return OutputWriteError(code, reason, _final_name(name))
+
+
+def check_writable(path: str | os.PathLike) -> None:
+    """Make sure the file ``path`` can be written before the work that produces it (a
+    report, an animation): its folder is made if missing, and a probe next to it
+    (``path.part``) created and removed. :class:`OutputWriteError` naming ``path`` if not."""
+    path = Path(path)
+    probe = path.with_name(path.name + ".part")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.exists() and not os.access(path, os.W_OK):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        with open(probe, "xb"):
+            pass
+    except FileExistsError:  # a probe left by another pedmesh: this one is not ours
+        return
+    except OSError as exc:
+        raise OutputWriteError(exc.errno, exc.strerror or str(exc), str(path)) from None
+    probe.unlink(missing_ok=True)
+
+
+def write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteError:
+    """``exc``, an OSError raised while writing ``path``, as an :class:`OutputWriteError`
+    naming the file."""
+    return _write_error(path, exc)
 
 
 def file_sha256(path: str | Path) -> str:

@@ -248,3 +248,40 @@ def test_report_says_why_the_safety_measures_are_missing(small_run, tmp_path, ca
     text = out.read_text(encoding="utf-8")
     assert want in text
     assert "made before pedmesh" not in text or case == "old"
+
+
+# ---------------------------------------------------------------- outputs of report/animate
+@pytest.mark.parametrize("command", ["report", "animate"])
+def test_an_unwritable_output_is_refused_before_the_work(small_run, tmp_path, capsys,
+                                                         monkeypatch, command):
+    import pedmesh.animate
+    import pedmesh.report
+
+    def never(*a, **k):
+        raise AssertionError("the work was done before the output was checked")
+
+    monkeypatch.setattr(pedmesh.report, "build_report", never)
+    monkeypatch.setattr(pedmesh.animate, "_Frames", never)
+    out = Path("/proc/pedmesh-not-writable") / ("r.html" if command == "report" else "a.gif")
+    assert main([command, str(small_run), "-o", str(out)]) == 2
+    line = _one_line_error(capsys)
+    assert f"cannot write {out}" in line
+
+
+def test_a_full_disk_in_report_names_the_file(small_run, tmp_path, capsys, monkeypatch):
+    import errno
+    import os
+
+    real = Path.write_text
+
+    def full(self, *a, **k):
+        if self.name.endswith(".html.part"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # (no file name)
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(Path, "write_text", full)
+    out = tmp_path / "r.html"
+    assert main(["report", str(small_run), "-o", str(out)]) == 2
+    line = _one_line_error(capsys)
+    assert f"cannot write {out}: {os.strerror(errno.ENOSPC)}" in line
+    assert not out.exists() and not list(tmp_path.glob("*.part"))
