@@ -586,6 +586,29 @@ def _check_scheduler(scheduler: str | None) -> None:
     if not host or not 0 < int(port) < 65536:
         raise EnsembleError(f"{what} is not valid (a host and a port 1-65535 are needed); "
                             "give tcp://HOST:PORT")
+    if scheduler.startswith("tcp://") or "://" not in scheduler:
+        _probe_scheduler(scheduler, host, int(port))
+
+
+def _probe_scheduler(scheduler: str, host: str, port: int, timeout: float = 5.0) -> None:
+    """EnsembleError at once if nothing listens at ``host:port`` (Dask's own client would
+    retry a refused connection until its timeout and then report only that)."""
+    import socket
+
+    try:
+        with socket.create_connection((host, port), timeout=timeout):
+            pass
+    except ConnectionRefusedError:
+        raise EnsembleError(f"cannot reach the Dask scheduler at {scheduler}: the connection "
+                            "was refused (no scheduler listens there; start one with "
+                            "'dask scheduler', or leave out --scheduler to use this "
+                            "machine)") from None
+    except socket.timeout:
+        raise EnsembleError(f"cannot reach the Dask scheduler at {scheduler}: no answer "
+                            f"within {timeout:g} s (a firewall, or the wrong host)") from None
+    except OSError as exc:
+        raise EnsembleError(f"cannot reach the Dask scheduler at {scheduler}: "
+                            f"{exc.strerror or exc}") from None
 
 
 def _is_ensemble_dir(d: Path) -> bool:

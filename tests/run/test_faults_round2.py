@@ -285,3 +285,17 @@ def test_a_full_disk_in_report_names_the_file(small_run, tmp_path, capsys, monke
     line = _one_line_error(capsys)
     assert f"cannot write {out}: {os.strerror(errno.ENOSPC)}" in line
     assert not out.exists() and not list(tmp_path.glob("*.part"))
+
+
+# ---------------------------------------------------------------- a refused scheduler port
+def test_a_refused_scheduler_port_says_so_at_once(tmp_path, capsys):
+    import time
+
+    pytest.importorskip("distributed")
+    t0 = time.perf_counter()
+    assert main(["ensemble", str(_room(tmp_path)), "--members", "1", "--scheduler",
+                 "tcp://127.0.0.1:1", "--out", str(tmp_path / "e"), "-q"]) == 2
+    line = _one_line_error(capsys)
+    assert "tcp://127.0.0.1:1" in line and "refused" in line
+    assert time.perf_counter() - t0 < 10.0  # (was Dask's 20 s timeout, 31 s in all)
+    assert not (tmp_path / "e").exists()
