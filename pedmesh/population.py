@@ -24,6 +24,12 @@ A number instead of a distribution is a constant. Distributions (:class:`Distrib
 * ``lognormal``: ``mu``, ``sigma`` of ln(x) (median exp(mu); ``mu`` in [-10, 10],
   ``sigma`` up to 5), optional ``min``/``max`` (truncated likewise).
 
+Each quantity has a physical range (:data:`RANGES`), checked against every value the
+distribution draws (a constant's ``value``; ``min`` and ``max``, or for an untruncated tail
+its :data:`TAIL` quantile): ``speed`` in [0.1, 5] m/s and ``radius`` in [0.05, 1] m, the
+ranges of the models' ``U_f`` and ``r`` (:mod:`pedmesh.parameters`) whose values they
+replace, and ``premovement`` in [0, 3600] s (:data:`MAX_PREMOVEMENT_S`).
+
 Drawing is reproducible: the run's seed (``seed``, default 0) seeds one generator, and each
 start area and quantity draws from its own stream derived from it, so adding a quantity to
 one area does not change the draws of another. Without ``speed`` or ``radius`` everyone has
@@ -41,8 +47,9 @@ import numpy as np
 
 from .errors import GeometryError
 
-__all__ = ["Distribution", "distribution_from_spec", "Population", "draw_population",
-           "exit_choice_from_spec", "Arrivals", "arrivals_from_spec"]
+__all__ = ["Distribution", "distribution_from_spec", "check_range", "RANGES",
+           "MAX_PREMOVEMENT_S", "Population", "draw_population", "exit_choice_from_spec",
+           "Arrivals", "arrivals_from_spec"]
 
 _KINDS = {
     "constant": ("value",),
@@ -58,6 +65,31 @@ _OPTIONAL = {"constant": (), "uniform": (), "normal": ("min", "max"),
 LOGNORMAL_MU = (-10.0, 10.0)
 #: the largest lognormal ``sigma``: its 99th percentile is then 1e5 times its median
 LOGNORMAL_SIGMA = 5.0
+#: [s] the longest premovement time a start area's people may have: an hour, beyond the
+#: minutes of evacuation studies' premovement times and far beyond a run's default end
+#: (:data:`pedmesh.parameters.DEFAULT_T_END_S`, 1000 s)
+MAX_PREMOVEMENT_S = 3600.0
+#: the probability of an untruncated tail beyond the quantile :func:`check_range` checks
+#: (one person in 10,000 draws a value beyond it)
+TAIL = 1e-4
+
+
+def _ranges() -> dict[str, tuple[float, float, str, str]]:
+    from .parameters import get
+
+    u, r = get("U_f"), get("r")
+    return {
+        "speed": (*u.range, u.unit, "the range of the models' free speed U_f, which it "
+                                    "replaces"),
+        "radius": (*r.range, r.unit, "the range of the models' body radius r, which it "
+                                     "replaces"),
+        "premovement": (0.0, MAX_PREMOVEMENT_S, "s", "at most an hour"),
+    }
+
+
+#: the physical range of each quantity a start area's people draw: name -> (low, high,
+#: unit, why); closed intervals
+RANGES = _ranges()
 
 
 @dataclass(frozen=True)
@@ -223,21 +255,83 @@ def distribution_from_spec(spec: Any, what: str, where: str, *,
     return d
 
 
-@dataclass(frozen=True)
+def check_range(d: Distribution, what: str, where: str) -> Distribution:
+    """``d`` if every value it draws lies in the physical range of ``what`` (:data:`RANGES`;
+    other quantities are not checked): a constant's value, ``min`` and ``max``, and for an
+    untruncated tail its :data:`TAIL` quantile. Else a one-line error naming ``where``
+    (e.g. "start area 'hall'"), the quantity, the range and the value."""
+    if what not in RANGES:
+        return d
+    lo, hi, unit, why = RANGES[what]
+    if d.kind == "constant":
+        ends = [(d.value, f"{d.value:g}")]
+    else:
+        ends = []
+        for name, q in (("min", TAIL), ("max", 1.0 - TAIL)):
+            v = getattr(d, name)
+            if v is not None:
+                ends.append((v, f"'{name}' {v:g}"))
+            else:
+                v = float(d._frozen().ppf(q))
+                ends.append((v, f"{v:.3g} at its {100 * q:g} % quantile (give '{name}' to "
+                                f"truncate it)"))
+    for v, shown in ends:
+        if not lo <= v <= hi:
+            raise GeometryError(f"{where}: '{what}': values must be in [{lo:g}, {hi:g}] "
+                                f"{unit} ({why}), got {shown}")
+    return d
+
+
 class Arrivals:
     """When the people of an entrance (a start area with ``arrivals``) enter the room.
 
     ``times`` (count,) arrival times [s], ascending; ``rate`` [1/s] and ``start`` [s] when
-    they were given as a regular rate (``times = start + k / rate``), else None.
+    they were given as a regular rate (``times = start + k / rate`` for k < ``count``),
+    else None. A regular schedule makes its times when they are first asked for: reading a
+    room file allocates nothing per person, so that a run checks the crowd's size
+    (:func:`pedmesh.run.driver.check_crowd`) before memory for a huge ``count`` is taken.
+    Immutable, like the start area that holds it.
     """
 
-    times: tuple[float, ...]
-    rate: float | None = None
-    start: float | None = None
+    def __init__(self, times: Any = None, rate: float | None = None,
+                 start: float | None = None, count: int | None = None) -> None:
+        if times is None:
+            if rate is None or count is None:
+                raise TypeError("Arrivals needs 'times', or 'rate' and 'count'")
+            given, n = None, int(count)
+            start = 0.0 if start is None else start
+        else:
+            given = tuple(float(t) for t in times)
+            n = len(given)
+        for key, value in (("rate", rate), ("start", start), ("count", n), ("_times", given)):
+            object.__setattr__(self, key, value)
+
+    def __setattr__(self, key: str, value: Any) -> None:
+        raise AttributeError(f"Arrivals is immutable (cannot set '{key}')")
 
     @property
-    def count(self) -> int:
-        return len(self.times)
+    def times(self) -> tuple[float, ...]:
+        if self._times is None:  # (a regular schedule, made once)
+            object.__setattr__(self, "_times", tuple(float(self.start + k / self.rate)
+                                                     for k in range(self.count)))
+        return self._times
+
+    def _key(self) -> tuple:
+        return (self.rate, self.start, self.count,
+                self.times if self.rate is None else None)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Arrivals):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def __repr__(self) -> str:
+        if self.rate is not None:
+            return f"Arrivals(rate={self.rate!r}, start={self.start!r}, count={self.count})"
+        return f"Arrivals(times={self.times!r}, rate={self.rate!r}, start={self.start!r})"
 
     def cdf(self, t) -> np.ndarray:
         """The fraction of the people who have arrived by time ``t`` [s] (the schedule's
@@ -282,7 +376,7 @@ def arrivals_from_spec(spec: Any, count: int | None, where: str) -> Arrivals:
             raise GeometryError(f"{label}: 'start' must be >= 0, got {start:g}")
         if count is None:
             raise GeometryError(f"{label}: a 'rate' needs the area's 'count'")
-        return Arrivals(tuple(float(start + k / rate) for k in range(count)), rate, start)
+        return Arrivals(rate=rate, start=start, count=count)  # (its times: when asked for)
     times = spec["times"]
     if not isinstance(times, (list, tuple)) or not times:
         raise GeometryError(f"{label}: 'times' must be a non-empty list of times [s]")

@@ -33,8 +33,8 @@ import numpy as np
 from shapely.geometry import LinearRing, LineString, Polygon
 
 from ..errors import GeometryError
-from .room import (Points, Room, _check_name, _check_preset, _coerce_points, _is_real,
-                   _polygon)
+from .room import (_COORDINATE_LIMITS, MAX_COORDINATE, Points, Room, _check_name, _check_preset,
+                   _coerce_points, _is_real, _polygon)
 from .tolerances import EXIT_TOLERANCE
 
 __all__ = ["Building", "Level", "Stair", "StairEnd", "STAIR_SPEED_UP", "STAIR_SPEED_DOWN",
@@ -157,9 +157,9 @@ class Level:
 
     def __post_init__(self) -> None:
         _check_name(self.name, "level")
-        if not _is_real(self.z) or not math.isfinite(self.z):
-            raise GeometryError(f"level '{self.name}': 'z' must be a finite height in m, "
-                                f"got {self.z!r}")
+        if not _is_real(self.z) or not abs(self.z) <= MAX_COORDINATE:  # (nan fails too)
+            raise GeometryError(f"level '{self.name}': 'z' must be a finite height in m "
+                                f"within {_COORDINATE_LIMITS}, got {self.z!r}")
         object.__setattr__(self, "z", float(self.z))
         if not isinstance(self.room, Room):
             raise GeometryError(f"level '{self.name}': its room must be a Room")
@@ -194,6 +194,7 @@ class Building:
         _check_preset(self.preset)
         for s in self.stairs:
             self._check_stair(s)
+        self._check_stair_openings()
 
     # ------------------------------------------------------------------ checks
     def level(self, name: str) -> Level:
@@ -250,6 +251,23 @@ class Building:
             raise GeometryError(f"{label} is steeper than {MAX_STAIR_SLOPE_DEG:g} degrees "
                                 f"({slope:.1f}: a rise of {rise:g} m over a run of "
                                 f"{run:g} m)")
+
+    def _check_stair_openings(self) -> None:
+        """A one-line error if two stairs' edges overlap on a level: each stair joins the
+        level through its own opening in the wall (two stairs sharing one would join each
+        other there, past the level)."""
+        ends = [(s, key, getattr(s, key)) for s in self.stairs for key in ("bottom", "top")]
+        for a in range(len(ends)):
+            for b in range(a + 1, len(ends)):
+                (sa, ka, ea), (sb, kb, eb) = ends[a], ends[b]
+                if sa is sb or ea.level != eb.level:
+                    continue
+                common = LineString(ea.edge).intersection(LineString(eb.edge)).length
+                if common > EXIT_TOLERANCE:
+                    raise GeometryError(
+                        f"stair '{sa.name}': its {ka} edge overlaps the {kb} edge of stair "
+                        f"'{sb.name}' on level '{ea.level}' ({common:g} m in common; each "
+                        "stair needs its own opening in the level's wall)")
 
     @staticmethod
     def _extent(s: Stair, d: np.ndarray) -> tuple[float, float]:

@@ -6,8 +6,9 @@ that names the element and the problem.
 
 Rules (checked in this order):
 
-* coordinates are pairs of finite real numbers; consecutive duplicate points are dropped,
-  and a closing point equal to the first point of a ring is dropped;
+* coordinates are pairs of finite real numbers within +-:data:`MAX_COORDINATE` (1e7 m);
+  consecutive duplicate points are dropped, and a closing point equal to the first point of
+  a ring is dropped;
 * rings (outline, obstacles, start and measurement areas) have at least three distinct
   points, are simple (no self-intersection) and enclose a positive area;
 * obstacles lie strictly inside the outline (not touching it) and neither overlap nor touch
@@ -16,7 +17,9 @@ Rules (checked in this order):
   obstacle's boundary within :data:`EXIT_TOLERANCE` (1e-6 m); exits do not overlap;
 * start areas lie in the walkable area (room minus obstacles) within the same tolerance and
   give exactly one of ``count`` (pedestrians), ``spacing`` [m] or ``density`` [ped/m^2],
-  at most :data:`MAX_START_DENSITY` (10 /m^2) people per m^2;
+  at most :data:`MAX_START_DENSITY` (10 /m^2) people per m^2; their people's ``speed``
+  [m/s], ``radius`` [m] and ``premovement`` [s] lie in physical ranges
+  (:data:`pedmesh.population.RANGES`);
 * measurement lines and areas lie in the walkable area;
 * names are non-empty and unique within their kind.
 """
@@ -38,6 +41,7 @@ from .tolerances import EXIT_TOLERANCE
 
 __all__ = [
     "EXIT_TOLERANCE",
+    "MAX_COORDINATE",
     "MAX_START_DENSITY",
     "Points",
     "Obstacle",
@@ -50,6 +54,13 @@ __all__ = [
 
 
 Points = tuple[tuple[float, float], ...]
+
+#: [m] the largest coordinate (in absolute value) a point may have: 10,000 km, more than any
+#: site; far beyond it a float64 coordinate's resolution (2e-9 m at 1e7 m) nears the
+#: 1e-6 m of :data:`EXIT_TOLERANCE` and areas, squares of lengths, lose their meaning
+MAX_COORDINATE = 1e7
+_COORDINATE_LIMITS = f"[-{MAX_COORDINATE:.0e}, {MAX_COORDINATE:.0e}]".replace("e+0", "e")
+_COORDINATE_RANGE = f"coordinates must be finite and within {_COORDINATE_LIMITS} m"
 
 
 # --------------------------------------------------------------------------- coercion
@@ -78,7 +89,11 @@ def _coerce_points(value: Any, label: str, *, ring: bool) -> Points:
             if not _is_real(c):
                 raise GeometryError(f"{label}: point {k} has a non-numeric coordinate {c!r}")
             if not math.isfinite(c):
-                raise GeometryError(f"{label}: point {k} has a non-finite coordinate {c!r}")
+                raise GeometryError(f"{label}: point {k} has a non-finite coordinate {c!r} "
+                                    f"({_COORDINATE_RANGE})")
+            if abs(c) > MAX_COORDINATE:
+                raise GeometryError(f"{label}: point {k} has a coordinate of {c:g} m "
+                                    f"({_COORDINATE_RANGE})")
         q = (float(p[0]), float(p[1]))
         if pts and q == pts[-1]:
             continue  # consecutive duplicate
@@ -99,7 +114,8 @@ def _coerce_points(value: Any, label: str, *, ring: bool) -> Points:
 
 def _check_name(name: Any, kind: str) -> str:
     if not isinstance(name, str) or not name.strip():
-        raise GeometryError(f"{kind} name must be a non-empty string, got {name!r}")
+        raise GeometryError(f"{kind} name must be a non-empty string, got {name!r} "
+                            f"({type(name).__name__})")
     return name
 
 
@@ -250,7 +266,9 @@ class StartArea:
         Optional distributions (:mod:`pedmesh.population`) of the premovement time [s]
         before a pedestrian starts walking, the free walking speed [m/s] and the body
         radius [m]: a number (constant) or a dict such as ``{"distribution": "normal",
-        "mean": 1.34, "sd": 0.26, "min": 0.46, "max": 2.22}``.
+        "mean": 1.34, "sd": 0.26, "min": 0.46, "max": 2.22}``, within the physical ranges of
+        :data:`pedmesh.population.RANGES` (speed 0.1-5 m/s, radius 0.05-1 m, premovement
+        0-3600 s).
     exits
         Optional exits this area's people head for: a list of exit names (the quickest
         of them) or ``{name: fraction}`` (fractions of the people, adding up to 1).
@@ -304,13 +322,16 @@ class StartArea:
         object.__setattr__(self, "density", _positive(self.density, "density", label))
         if self.arrivals is None:  # (an entrance's people arrive one by one)
             self._check_density(label)
-        from ..population import Distribution, distribution_from_spec, exit_choice_from_spec
+        from ..population import (Distribution, check_range, distribution_from_spec,
+                                  exit_choice_from_spec)
 
         for key, positive in (("premovement", False), ("speed", True), ("radius", True)):
             v = getattr(self, key)
             if v is not None and not isinstance(v, Distribution):
-                object.__setattr__(self, key, distribution_from_spec(v, key, label,
-                                                                     positive=positive))
+                v = distribution_from_spec(v, key, label, positive=positive)
+                object.__setattr__(self, key, v)
+            if v is not None:  # (a Distribution given as one is checked too)
+                check_range(v, key, label)
         if self.exits is not None:
             object.__setattr__(self, "exits", exit_choice_from_spec(self.exits, label))
 
@@ -350,9 +371,16 @@ class StartArea:
         return Polygon(self.polygon)
 
     def lattice(self, spacing: float, region: Polygon | None = None) -> np.ndarray:
-        """Square-lattice points (k, 2) [m] with the given spacing inside the area."""
+        """Square-lattice points (k, 2) [m] with the given spacing inside the area. A lattice
+        whose bounding box holds more than :data:`LATTICE_BLOCK` points is made block by
+        block where the area is (:func:`_lattice_blocks`): the same points, in the same
+        order, in memory that grows with the points inside, not with the bounding box."""
         poly = self.shape if region is None else self.shape.intersection(region)
         x0, y0, x1, y1 = self.shape.bounds
+        ax = _Axis(x0 + 0.5 * spacing, x1, spacing)
+        ay = _Axis(y0 + 0.5 * spacing, y1, spacing)
+        if ax.n * ay.n > LATTICE_BLOCK:
+            return _lattice_blocks(poly, ax, ay)
         xs = np.arange(x0 + 0.5 * spacing, x1, spacing)
         ys = np.arange(y0 + 0.5 * spacing, y1, spacing)
         # x runs slowest so that the paper's numbering 50 i + j is the array order
@@ -390,6 +418,80 @@ class StartArea:
         raise GeometryError(
             f"start area '{self.name}': cannot place {self.count} pedestrians in it"
         )
+
+
+#: the most lattice points :meth:`StartArea.lattice` tests at once (about 40 MB of arrays):
+#: a larger bounding box is split into blocks, and blocks the area does not reach are
+#: skipped. (A thin diagonal strip 0.5 m wide and 14 km long holds 70,000 people at
+#: 10 /m^2, within a run's crowd limit, but its bounding box 1e9 lattice points: 32 GB.)
+LATTICE_BLOCK = 1 << 20
+
+
+class _Axis:
+    """The coordinates [m] ``np.arange(start, stop, step)`` makes, one index range at a time:
+    element i is ``start + i * ((start + step) - start)`` (element 1: ``start + step``),
+    as numpy fills it, so that the blocks of a lattice equal the whole lattice's points."""
+
+    def __init__(self, start: float, stop: float, step: float) -> None:
+        self.start, self.step = start, step
+        self.delta = (start + step) - start
+        self.n = max(0, math.ceil((stop - start) / step))
+
+    def values(self, i0: int, i1: int) -> np.ndarray:
+        v = self.start + np.arange(i0, i1, dtype=np.float64) * self.delta
+        if i0 <= 1 < i1:
+            v[1 - i0] = self.start + self.step
+        return v
+
+    def indices(self, lo: float, hi: float, i0: int, i1: int) -> tuple[int, int]:
+        """The index range within [i0, i1) whose coordinates may lie in [lo, hi] (one index
+        of margin either side for round-off)."""
+        a = math.floor((lo - self.start) / self.delta) - 1
+        b = math.ceil((hi - self.start) / self.delta) + 2
+        return max(i0, a), min(i1, b)
+
+
+def _lattice_blocks(poly, ax: _Axis, ay: _Axis) -> np.ndarray:
+    """The lattice points (k, 2) [m] of axes ``ax`` x ``ay`` inside ``poly``, in the
+    whole lattice's order (x slowest), made in blocks of at most :data:`LATTICE_BLOCK`
+    points: a block is first shrunk to the bounding box of the part of ``poly`` in it
+    (skipped if there is none), and split in two along its longer side while too large."""
+    if poly.is_empty:
+        return np.zeros((0, 2))
+    shapely.prepare(poly)
+    h = 0.5 * ax.step
+    found_i, found_j, found = [], [], []
+    todo = [(0, ax.n, 0, ay.n)]
+    while todo:
+        i0, i1, j0, j1 = todo.pop()
+        xa, xb = ax.values(i0, i0 + 1)[0], ax.values(i1 - 1, i1)[0]
+        ya, yb = ay.values(j0, j0 + 1)[0], ay.values(j1 - 1, j1)[0]
+        part = shapely.clip_by_rect(poly, xa - h, ya - h, xb + h, yb + h)
+        if part.is_empty:
+            continue
+        px0, py0, px1, py1 = part.bounds
+        i0, i1 = ax.indices(px0, px1, i0, i1)
+        j0, j1 = ay.indices(py0, py1, j0, j1)
+        if i0 >= i1 or j0 >= j1:
+            continue
+        if (i1 - i0) * (j1 - j0) > LATTICE_BLOCK:
+            if i1 - i0 >= j1 - j0:
+                m = (i0 + i1) // 2
+                todo += [(i0, m, j0, j1), (m, i1, j0, j1)]
+            else:
+                m = (j0 + j1) // 2
+                todo += [(i0, i1, j0, m), (i0, i1, m, j1)]
+            continue
+        gi, gj = np.meshgrid(np.arange(i0, i1), np.arange(j0, j1), indexing="ij")
+        gx, gy = np.meshgrid(ax.values(i0, i1), ay.values(j0, j1), indexing="ij")
+        inside = shapely.contains_xy(poly, gx.ravel(), gy.ravel())
+        found_i.append(gi.ravel()[inside])
+        found_j.append(gj.ravel()[inside])
+        found.append(np.column_stack([gx.ravel()[inside], gy.ravel()[inside]]))
+    if not found:
+        return np.zeros((0, 2))
+    order = np.lexsort((np.concatenate(found_j), np.concatenate(found_i)))
+    return np.concatenate(found)[order]
 
 
 @dataclass(frozen=True)
@@ -511,7 +613,8 @@ class Room:
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
-            raise GeometryError(f"room name must be a string, got {self.name!r}")
+            raise GeometryError(f"room name must be a string, got {self.name!r} "
+                                f"({type(self.name).__name__})")
         if not isinstance(self.description, str):
             raise GeometryError(f"room description must be a string, got {self.description!r}")
         _check_preset(self.preset)

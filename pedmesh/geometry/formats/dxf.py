@@ -22,6 +22,7 @@ layer is read as a building.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 from typing import Any
@@ -46,8 +47,12 @@ _ROLES = {
     "exit": ("exits", False),
     "room": (None, True),
 }
-_PARAM = re.compile(r"^\s*(count|spacing|density)\s*=\s*([-+0-9.eE]+)\s*$")
-_NUMBER = re.compile(r"^\s*(z|speed_up|speed_down)\s*=\s*([-+0-9.eE]+)\s*$")
+# a TEXT "key=value": the start parameters (count, spacing, density), a level's height z,
+# a stair's speed_up/speed_down; the value is read by _number
+_KEY_VALUE = re.compile(r"^\s*([A-Za-z_]+)\s*=\s*(.*?)\s*$")
+_START_KEYS = ("count", "spacing", "density")
+_LEVEL_KEYS = ("z",)
+_STAIR_KEYS = ("speed_up", "speed_down")
 _STAIR_END = re.compile(r"^stair[-_](.+)\.(bottom|top)[-_](.+)$", re.IGNORECASE)
 _STAIR = re.compile(r"^stair[-_](.+)$", re.IGNORECASE)
 
@@ -62,18 +67,43 @@ def _role(layer: str) -> tuple[str, str | None] | None:
     return None
 
 
+def _key_value(text: str, keys: tuple[str, ...]) -> tuple[str, str] | None:
+    """(key, value text) of a TEXT ``key=value`` whose key (case-insensitive) is one of
+    ``keys``, else None."""
+    m = _KEY_VALUE.match(text)
+    if m and m.group(1).lower() in keys:
+        return m.group(1).lower(), m.group(2)
+    return None
+
+
+def _number(path, where: str, key: str, value: str, expected: str) -> float:
+    """The finite number a TEXT ``key=value`` gives; a one-line error naming ``where`` (the
+    layer, level or stair) and the value otherwise."""
+    try:
+        v = float(value)
+    except ValueError:
+        raise RoomFileError(f"{path}: {where}: {key}={value!r} is not a number (expected "
+                            f"{expected})") from None
+    if not math.isfinite(v):
+        raise RoomFileError(f"{path}: {where}: {key}={value!r} is not a finite number "
+                            f"(expected {expected})")
+    return v
+
+
 def _start_params(path, layer: str, texts: list[str]) -> dict[str, Any]:
     params: dict[str, Any] = {}
     for t in texts:
-        m = _PARAM.match(t)
-        if not m:
+        kv = _key_value(t, _START_KEYS)
+        if kv is None:
             raise RoomFileError(
                 f"{path}: layer '{layer}': cannot read start parameter text {t!r} "
                 "(expected count=N, spacing=S or density=D)"
             )
-        params[m.group(1)] = float(m.group(2))
-    if "count" in params:
-        params["count"] = int(params["count"])
+        key, value = kv
+        params[key] = _number(path, f"layer '{layer}'", key, value,
+                              "count=N, spacing=S [m] or density=D [ped/m^2]")
+    if "count" in params and params["count"].is_integer():
+        params["count"] = int(params["count"])  # (else the start area says: a whole number)
     return params or {"spacing": 1.0}
 
 
@@ -139,13 +169,15 @@ def _room_native(path, ents, default_name: str, level: str | None = None) -> dic
     native: dict[str, Any] = {"outline": rooms[0][1], "name": rooms[0][0] or default_name}
     room_texts = texts.get(rooms[0][2], [])
     if level is not None:
-        z = [m for m in (_NUMBER.match(x) for x in room_texts) if m and m.group(1) == "z"]
+        z = [kv[1] for kv in (_key_value(x, _LEVEL_KEYS) for x in room_texts) if kv]
         if len(z) != 1:
             raise RoomFileError(f"{path}: level '{level}': its room layer needs one TEXT "
-                                "'z=HEIGHT' (the level's height in m)")
-        native["z"] = float(z[0].group(2))
+                                f"'z=HEIGHT' (the level's height in m), got {len(z)}")
+        native["z"] = _number(path, f"level '{level}' (layer '{level}.{rooms[0][2]}')", "z",
+                              z[0], "z=HEIGHT, the level's height in m")
         native["name"] = level
-        room_texts = [x for x in room_texts if not _NUMBER.match(x)]
+        room_texts = [x for x in room_texts
+                      if _key_value(x, _LEVEL_KEYS + _STAIR_KEYS) is None]
     if room_texts and level is None:
         native["description"] = "\n".join(room_texts)
     for role, (key, _closed) in _ROLES.items():
@@ -160,7 +192,8 @@ def _room_native(path, ents, default_name: str, level: str | None = None) -> dic
             name = f"{base}-{seen[base]}" if bases.count(base) > 1 else base
             el: dict[str, Any] = {coord_key: pts, "name": name}
             if role == "start":
-                el.update(_start_params(path, layer, texts.get(layer, [])))
+                shown = f"{level}.{layer}" if level else layer
+                el.update(_start_params(path, shown, texts.get(layer, [])))
             native.setdefault(key, []).append(el)
     return native
 
@@ -214,11 +247,12 @@ def read_dxf(path: str | Path) -> Room | Building:
         item = {"name": name, "polygon": st["polygon"], "bottom": st["bottom"],
                 "top": st["top"]}
         for text in st["texts"]:
-            m = _NUMBER.match(text)
-            if not m or m.group(1) == "z":
+            kv = _key_value(text, _STAIR_KEYS)
+            if kv is None:
                 raise RoomFileError(f"{path}: stair '{name}': cannot read {text!r} (expected "
                                     "speed_up=F or speed_down=F)")
-            item[m.group(1)] = float(m.group(2))
+            item[kv[0]] = _number(path, f"stair '{name}'", *kv,
+                                  f"{kv[0]}=F, a fraction of the free speed")
         data["stairs"].append(item)
     return room_from_dict(data, str(path))
 

@@ -163,6 +163,15 @@ def _checked_object(item: Any, where: str, what: str, allowed: set[str],
     return where
 
 
+def _checked_name(name: Any, where: str, what: str) -> str:
+    """``name`` if it is a non-empty string, else a one-line error naming ``where`` (the
+    level's or stair's place in the file) and the type given."""
+    if not isinstance(name, str) or not name.strip():
+        raise GeometryError(f"{where}: the {what}'s name must be a non-empty string, got "
+                            f"{name!r} ({type(name).__name__})")
+    return name
+
+
 def building_from_dict(data: dict, source: str = "building") -> Building:
     """Build a :class:`Building` from a native-format dict with ``"levels"``."""
     unknown = sorted(set(data) - _BUILDING_KEYS)
@@ -179,13 +188,18 @@ def building_from_dict(data: dict, source: str = "building") -> Building:
     for i, item in enumerate(levels_in):
         where = _checked_object(item, f"{source}: levels[{i}]", "level", _LEVEL_KEYS,
                                 ("name", "z"))
-        room = _room({k: v for k, v in item.items() if k != "z"},
-                     f"{where} ('{item['name']}')")
-        levels.append(Level(item["name"], item["z"], room))
+        name = _checked_name(item["name"], where, "level")
+        try:
+            room = _room({k: v for k, v in item.items() if k != "z"}, f"{where} ('{name}')")
+        except GeometryError as exc:  # (the room's own message: say whose room it is)
+            raise GeometryError(f"level '{name}': {exc}") from None
+        levels.append(Level(name, item["z"], room))
     stairs = []
     for i, item in enumerate(stairs_in):
-        _checked_object(item, f"{source}: stairs[{i}]", "stair", _STAIR_KEYS,
-                        ("polygon", "bottom", "top"))
+        where = _checked_object(item, f"{source}: stairs[{i}]", "stair", _STAIR_KEYS,
+                                ("polygon", "bottom", "top"))
+        if "name" in item:
+            _checked_name(item["name"], where, "stair")
         stairs.append(Stair(**{"name": f"stair-{i + 1}", **item}))
     kwargs = {k: data[k] for k in ("name", "description", "preset") if k in data}
     return Building(levels=levels, stairs=stairs, **kwargs)
