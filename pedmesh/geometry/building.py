@@ -192,9 +192,44 @@ class Building:
                 raise GeometryError(f"exit name '{n}' is used on more than one level (exit "
                                     "names must be unique in a building)")
         _check_preset(self.preset)
+        known = set(exits)
+        for lv in self.levels:
+            for a in lv.room.start_areas:
+                for e, _ in a.exits or ():
+                    if e not in known:
+                        raise GeometryError(f"level '{lv.name}': start area '{a.name}': "
+                                            f"'exits' names '{e}', which is not an exit of "
+                                            f"the building (exits: {', '.join(sorted(known))})")
         for s in self.stairs:
             self._check_stair(s)
         self._check_stair_openings()
+
+    def no_way_out(self) -> list[tuple[str, str, str]]:
+        """(level, start area, why) of every start area whose people can never leave: no
+        stair leads from its level to a level with an exit (or to one of the exits the area
+        names)."""
+        adj: dict[str, set[str]] = {lv.name: set() for lv in self.levels}
+        for st in self.stairs:
+            adj[st.bottom.level].add(st.top.level)
+            adj[st.top.level].add(st.bottom.level)
+        exit_level = {e.name: lv.name for lv in self.levels for e in lv.room.exits}
+        out = []
+        for lv in self.levels:
+            if not lv.room.start_areas:
+                continue
+            seen, todo = {lv.name}, [lv.name]
+            while todo:
+                for n in adj[todo.pop()] - seen:
+                    seen.add(n)
+                    todo.append(n)
+            for a in lv.room.start_areas:
+                wanted = [e for e, _ in a.exits or ()] or list(exit_level)
+                if not any(exit_level[e] in seen for e in wanted):
+                    what = ("the exits it names" if a.exits else "a level with an exit")
+                    why = (f"no stair leads from level '{lv.name}' to {what}" if exit_level
+                           else "the building has no exit")
+                    out.append((lv.name, a.name, why))
+        return out
 
     # ------------------------------------------------------------------ checks
     def level(self, name: str) -> Level:

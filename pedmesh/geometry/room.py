@@ -593,6 +593,10 @@ class Room:
     preset
         The parameter preset runs of this room use unless told otherwise
         (:mod:`pedmesh.presets`; None: the default).
+    exits_elsewhere
+        Names of exits outside this room that its start areas' ``exits`` may name: on a
+        level of a building, the other levels' exits (set by the building's loader; the
+        :class:`~pedmesh.geometry.building.Building` checks they exist).
 
     Raises
     ------
@@ -609,9 +613,11 @@ class Room:
     name: str = "room"
     description: str = ""
     preset: str | None = None
+    exits_elsewhere: tuple[str, ...] = field(default=(), repr=False, compare=False)
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "exits_elsewhere", tuple(self.exits_elsewhere))
         if not isinstance(self.name, str):
             raise GeometryError(f"room name must be a string, got {self.name!r} "
                                 f"({type(self.name).__name__})")
@@ -631,14 +637,24 @@ class Room:
             "measurement_areas",
             _coerce_elements(self.measurement_areas, MeasurementArea, "measurement area"),
         )
-        names = {e.name for e in self.exits}
+        names = {e.name for e in self.exits} | set(self.exits_elsewhere)
         for s in self.start_areas:
             for e, _ in s.exits or ():
                 if e not in names:
+                    where = "the building" if self.exits_elsewhere else "the room"
                     raise GeometryError(f"start area '{s.name}': 'exits' names '{e}', which is "
-                                        f"not an exit of the room (exits: "
+                                        f"not an exit of {where} (exits: "
                                         f"{', '.join(sorted(names))})")
         self._validate()
+
+    def no_way_out(self) -> list[tuple[None, str, str]]:
+        """(None, start area, why) of every start area whose people can never leave: all of
+        them if the room has no exit (its walkable area is connected: obstacles lie inside
+        and never touch). The same form as :meth:`Building.no_way_out
+        <pedmesh.geometry.building.Building.no_way_out>`, whose first item is the level."""
+        if self.exits:
+            return []
+        return [(None, a.name, "the room has no exit") for a in self.start_areas]
 
     # ------------------------------------------------------------------ validation
     def _validate(self) -> None:

@@ -129,6 +129,23 @@ def check_steps(t_end: float, parameters: Mapping[str, Any],
     return steps
 
 
+def check_way_out(room) -> None:
+    """A one-line :class:`~pedmesh.errors.GeometryError` naming a start area (and its
+    level) whose people can never leave: a room without exits, a level with no stair to an
+    exit (:meth:`pedmesh.geometry.Building.no_way_out`)."""
+    from ..errors import GeometryError
+
+    if room is None or not getattr(room, "start_areas", ()):
+        return
+    stuck = room.no_way_out()
+    if stuck:
+        level, area, why = stuck[0]
+        where = f"level '{level}': " if level is not None else ""
+        more = f" (and {len(stuck) - 1} more start area(s))" if len(stuck) > 1 else ""
+        raise GeometryError(f"{where}start area '{area}': its people can never leave: "
+                            f"{why}{more}")
+
+
 def check_options(entry: ModelEntry, options: Mapping[str, Any]) -> None:
     """A one-line error for a model option the model does not take."""
     unknown = sorted(set(options) - entry.options)
@@ -249,7 +266,9 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
         raise KeyboardInterrupt
     if not (math.isfinite(t_end) and t_end > 0):
         raise ParameterError(f"t_end must be a positive number of seconds, got {t_end!r}")
-    check_crowd(room if room is not None else getattr(mesh, "room", None), max_people)
+    site = room if room is not None else getattr(mesh, "room", None)
+    check_crowd(site, max_people)
+    check_way_out(site)
     entry = get_model(model)
     check_room_mesh(room, mesh)
     overrides = dict(overrides or {})

@@ -106,11 +106,12 @@ def _check_header(data: dict, source: str) -> None:
         raise RoomFileError(f"{source}: 'units' must be 'm' (metres), got {data['units']!r}")
 
 
-def _room(data: dict, source: str) -> Room:
-    """The room of a dict whose keys were checked."""
+def _room(data: dict, source: str, exits_elsewhere: tuple[str, ...] = ()) -> Room:
+    """The room of a dict whose keys were checked (``exits_elsewhere``: see
+    :class:`~pedmesh.geometry.room.Room`)."""
     if "outline" not in data:
         raise RoomFileError(f"{source}: missing required key 'outline' (the room's wall polygon)")
-    kwargs: dict[str, Any] = {"outline": data["outline"]}
+    kwargs: dict[str, Any] = {"outline": data["outline"], "exits_elsewhere": exits_elsewhere}
     for key in ("name", "description", "preset"):
         if key in data:
             kwargs[key] = data[key]
@@ -185,12 +186,18 @@ def building_from_dict(data: dict, source: str = "building") -> Building:
         if not isinstance(items, list):
             raise RoomFileError(f"{source}: '{key}' must be a list, got {type(items).__name__}")
     levels = []
+    # a level's start areas may head for any exit of the building (the Building checks)
+    names = [e.get("name") for lv in levels_in if isinstance(lv, dict)
+             for e in (lv.get("exits") or []) if isinstance(e, dict)]
     for i, item in enumerate(levels_in):
         where = _checked_object(item, f"{source}: levels[{i}]", "level", _LEVEL_KEYS,
                                 ("name", "z"))
         name = _checked_name(item["name"], where, "level")
+        own = {e.get("name") for e in (item.get("exits") or []) if isinstance(e, dict)}
+        elsewhere = tuple(n for n in names if isinstance(n, str) and n not in own)
         try:
-            room = _room({k: v for k, v in item.items() if k != "z"}, f"{where} ('{name}')")
+            room = _room({k: v for k, v in item.items() if k != "z"}, f"{where} ('{name}')",
+                         elsewhere)
         except GeometryError as exc:  # (the room's own message: say whose room it is)
             raise GeometryError(f"level '{name}': {exc}") from None
         levels.append(Level(name, item["z"], room))

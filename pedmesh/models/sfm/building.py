@@ -25,7 +25,8 @@ from ...errors import ParameterError, SimulationError
 from .adapter import SFMRun
 from .simulation import Simulation
 
-__all__ = ["SurfaceSimulation", "BuildingSFMRun", "building_positions"]
+__all__ = ["SurfaceSimulation", "BuildingSFMRun", "building_positions",
+           "building_population"]
 
 #: [m] how far beyond a stair edge a pedestrian who crossed it is put, on the other side
 HINGE_NUDGE = 1e-7
@@ -58,6 +59,28 @@ def building_positions(building, atlas, *, seed: int | None = None,
     return np.concatenate(xs), np.concatenate(pieces)
 
 
+def building_population(building, n: int, seed: int | None = None):
+    """Who the levels' start areas' ``n`` people are (premovement, free speed, radius,
+    exits: :func:`pedmesh.population.draw_population` over the building's start areas, in
+    the order of :func:`building_positions`, drawn with ``seed``, 0 without one); None if
+    no start area says."""
+    from types import SimpleNamespace
+
+    from ...population import draw_population
+
+    areas = [a for lv in building.levels for a in lv.room.start_areas]
+    if not any(getattr(a, k) is not None for a in areas
+               for k in ("premovement", "speed", "radius", "exits")):
+        return None
+    counts = [len(a.positions(lv.room.walkable))
+              for lv in building.levels for a in lv.room.start_areas]
+    if sum(counts) != n:
+        raise SimulationError(f"the start areas hold {sum(counts)} people but {n} were "
+                              "placed (an internal error)")
+    return draw_population(SimpleNamespace(start_areas=areas), counts,
+                           seed=0 if seed is None else int(seed))
+
+
 class SurfaceSimulation(Simulation):
     """:class:`~pedmesh.models.sfm.simulation.Simulation` on a building's atlas (see the
     module docstring). ``atlas``: :func:`~pedmesh.mesh.atlas.build_atlas` of the building's
@@ -67,9 +90,10 @@ class SurfaceSimulation(Simulation):
                  **kwargs) -> None:
         if kwargs.get("desired_velocity") is not None:
             raise ParameterError("a constant desired velocity is not available on buildings")
-        if kwargs.get("population") is not None:
-            raise ParameterError("start areas with premovement, speeds, radii, exits or "
-                                 "arrivals are not available on buildings yet")
+        pop = kwargs.get("population")
+        if pop is not None and pop.has_arrivals:
+            raise ParameterError("entrances (start areas with arrivals) are not available on "
+                                 "buildings yet")
         self.atlas = atlas
         h = atlas.hinges
         #: per exit of the open atlas: whether it is a stair edge, the shift [m] that carries
@@ -140,11 +164,10 @@ class SurfaceSimulation(Simulation):
         self._use_const = False
         self.phi = np.zeros(self.mesh.n_points)
         self._next_route = 0.0
-        if len(self._targets) > 1:
-            raise ParameterError("start areas with their own exits are not available on "
-                                 "buildings yet")
         self._solver = BuildingRoutes(self.atlas)
-        self._group_solvers = [None]
+        # one more solver per distinct set of target exits (pedmesh.population)
+        self._group_solvers = [None] + [BuildingRoutes(self.atlas, exits=list(t))
+                                        for t in self._targets[1:]]
         self._set_route_density()
         self._route()
 
@@ -169,6 +192,12 @@ class SurfaceSimulation(Simulation):
             self.phi = phi_s[a.to_surface]
             self.surface_phi = phi_s
             self._dpack = scale_packed(field_.packed, factors)
+            if len(self._targets) > 1:  # a steering table per target group, stacked
+                tables = [self._dpack]
+                for g in self._group_solvers[1:]:
+                    _, f_g, fac_g = g.solve(cost)
+                    tables.append(scale_packed(f_g.packed, fac_g))
+                self._dpack = np.ascontiguousarray(np.concatenate(tables, axis=0))
             self.timers.routes += 1
         ri = self.numerics.route_interval
         self._next_route = self.t + ri if ri > 0 else self.t
@@ -299,11 +328,10 @@ class BuildingSFMRun(SFMRun):
                                  or not isinstance(seed, (int, np.integer)) or seed < 0):
             raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
         for a in building.start_areas:
-            for k in ("premovement", "speed", "radius", "exits", "arrivals"):
-                if getattr(a, k) is not None:
-                    raise ParameterError(
-                        f"start area '{a.name}': '{k}' is not available on buildings "
-                        "yet (the social force model takes plain start areas there)")
+            if a.arrivals is not None:
+                raise ParameterError(
+                    f"start area '{a.name}': entrances ('arrivals') are not available on "
+                    "buildings yet (the social force model takes start areas there)")
         self.building = building
         self.surface = mesh
         walk = self._walking_mesh(building, mesh)
@@ -320,10 +348,11 @@ class BuildingSFMRun(SFMRun):
             raise SimulationError("no start positions: the building's levels have no "
                                   "start areas")
         self.seed = seed
-        self.population = None
+        self.population = building_population(building, len(x), seed)
         self.sim = SurfaceSimulation(self.atlas, x, params=self.params,
                                      numerics=self.numerics, reroute=not static_routes,
-                                     seed=seed, own_mesh=walk is not mesh)
+                                     population=self.population, seed=seed,
+                                     own_mesh=walk is not mesh)
         self.mesh = mesh
         self._finish_init(static_routes, trajectory_rate, None)
         self._piece_names = [p.name for p in mesh.pieces]

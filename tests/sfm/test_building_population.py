@@ -1,0 +1,115 @@
+"""Start-area features on buildings (issue 45): premovement, free speeds, body radii and
+exit fractions of the levels' start areas, under the social force model and the continua
+(which apply premovement and say what they cannot represent)."""
+
+from __future__ import annotations
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+import pedmesh
+from building_data import TWO
+
+
+def _building(tmp_path, hall: dict | None = None, offices: dict | None = None):
+    """TWO with a second ground-floor door ('back', opposite 'front') and the given
+    start-area fields."""
+    b = copy.deepcopy(TWO)
+    b["levels"][0]["exits"].append({"name": "back", "polyline": [[20, 3], [20, 5]]})
+    b["levels"][0]["start_areas"][0].update(hall or {})
+    b["levels"][1]["start_areas"][0].update(offices or {})
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps({"format": "pedmesh-room", "version": 1, "units": "m", **b}))
+    return p
+
+
+def _first_exit(res) -> float:
+    t = np.sort(res.exit_times)
+    return float(t[0]) if len(t) else np.inf
+
+
+def test_premovement_on_a_building_delays_everyone(tmp_path):
+    plain = pedmesh.simulate(_building(tmp_path), t_end=200.0)
+    late = pedmesh.simulate(_building(tmp_path, {"premovement": 20.0},
+                                      {"premovement": 20.0}), t_end=200.0)
+    assert late.summary["status"] == plain.summary["status"] == "finished"
+    assert _first_exit(late) >= 20.0 + _first_exit(plain) - 1.0
+    pop = late.summary["parameters"]["population"]
+    assert pop["premovement_s"] == [20.0, 20.0, 20.0]
+
+
+def test_free_speed_and_radius_on_a_building(tmp_path):
+    plain = pedmesh.simulate(_building(tmp_path), t_end=300.0)
+    slow = pedmesh.simulate(_building(tmp_path, None, {"speed": 0.6, "radius": 0.3}),
+                            t_end=300.0)
+    pop = slow.summary["parameters"]["population"]
+    assert pop["radius_m"][2] == 0.3 and pop["free_speed_m_s"][0] == 0.6
+    # the upstairs offices walk at 0.6 m/s: the last of them leaves much later
+    assert slow.summary["t_evac_100"] > 1.3 * plain.summary["t_evac_100"]
+
+
+def test_exit_fractions_on_a_building_are_kept_exactly(tmp_path):
+    res = pedmesh.simulate(_building(tmp_path, {"exits": {"front": 0.4, "back": 0.6}},
+                                     {"exits": ["back"]}), t_end=300.0, seed=3)
+    s = res.summary
+    assert s["status"] == "finished"
+    # the hall's 30: 12 to the front and 18 to the back; the offices' 30 all to the back
+    assert s["exits"] == {"front": 12, "back": 48}
+    assert s["parameters"]["population"]["exit_groups"] == {"any": 0, "front": 12,
+                                                            "back": 48}
+
+
+@pytest.mark.parametrize("model", ["eos", "rdue", "pw"])
+def test_continua_take_the_same_building_file(tmp_path, model):
+    room = _building(tmp_path, {"premovement": 15.0, "exits": {"front": 0.5, "back": 0.5}},
+                     {"speed": 0.8, "radius": 0.3})
+    build = pedmesh.build(room, model)
+    assert build.waiting == pytest.approx(30.0, rel=1e-6)  # the hall waits 15 s
+    words = " ".join(build.warnings)
+    for what in ("'exits' is not used", "'speed' is not used", "'radius' is not used"):
+        assert what in words
+    res = pedmesh.simulate(room, model=model, t_end=300.0)
+    assert res.summary["status"] == "finished"
+
+
+# ---------------------------------------------------------------- people with no way out
+def _stranded(tmp_path, stairs: bool, levels: int = 2):
+    b = copy.deepcopy(TWO)
+    if not stairs:
+        b["stairs"] = []
+    for k in range(2, levels):
+        b["levels"].append({"name": f"floor-{k}", "z": 3.0 * k, "outline": b["levels"][0]
+                            ["outline"], "start_areas": [{"name": f"desk-{k}", "polygon":
+                                                          [[2, 1], [6, 1], [6, 5], [2, 5]],
+                                                          "spacing": 1.0}]})
+    p = tmp_path / "stranded.json"
+    p.write_text(json.dumps({"format": "pedmesh-room", "version": 1, "units": "m", **b}))
+    return p
+
+
+@pytest.mark.parametrize("model", ["sfm", "eos"])
+def test_people_who_can_never_leave_are_refused_before_the_run(tmp_path, capsys, model):
+    from pedmesh.cli import main
+
+    out = tmp_path / "run"
+    assert main(["run", str(_stranded(tmp_path, stairs=False)), "--model", model,
+                 "--out", str(out), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("pedmesh: error:"), err
+    assert "level 'first'" in err[0] and "start area 'offices'" in err[0]
+    assert "never leave" in err[0] and "hinge" not in err[0]
+    assert not out.exists()
+    # a tower whose upper floors have no stair: the first of them named, the others counted
+    with pytest.raises(pedmesh.PedmeshError, match=r"start area 'desk-2'.*and 1 more"):
+        pedmesh.simulate(_stranded(tmp_path, stairs=True, levels=4), t_end=1.0)
+
+
+def test_a_room_without_exits_is_refused():
+    room = pedmesh.Room(outline=[(0, 0), (5, 0), (5, 5), (0, 5)],
+                        start_areas=[dict(name="a", polygon=[(1, 1), (2, 1), (2, 2), (1, 2)],
+                                          count=2)])
+    with pytest.raises(pedmesh.PedmeshError, match="start area 'a'.*room has no exit"):
+        pedmesh.simulate(room, t_end=1.0)
