@@ -64,7 +64,8 @@ def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
         if not isinstance(mesh_options, Mapping):
             raise ParameterError("mesh_options must be a mapping of option names to values, "
                                  f"e.g. {{'max_area': 0.5}}; got {type(mesh_options).__name__}")
-        known = _MESH_OPTIONS
+        from .geometry.site import MESH_OPTIONS as known
+
         bad = [k for k in mesh_options if k not in known]
         if bad:
             raise ParameterError(f"mesh_options: unknown option {bad[0]!r} (options: "
@@ -79,19 +80,11 @@ def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
         raise ParameterError(f"quiet must be True or False, got {quiet!r:.40}")
 
 
-#: the mesh options of :func:`simulate` and :func:`build` (those of
-#: :func:`pedmesh.mesh.triangulate`; a building takes them but exit_size and size)
-_MESH_OPTIONS = ("max_area", "min_angle", "feature_area", "exit_size", "size_growth", "size",
-                 "max_refinements", "max_cells")
-
-
 def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
                    max_people: int | None = None):
     from .errors import RoomFileError
-    from .geometry import Building, Room
+    from .geometry.site import check_site, mesh_site
     from .io import load_room
-    from .mesh import triangulate
-    from .mesh.building import triangulate_building
     from .run.driver import check_crowd
 
     geometry = None
@@ -100,17 +93,10 @@ def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
         if not Path(room).exists():
             raise RoomFileError(f"{room}: no such room file")
         room = load_room(room)
-    elif not isinstance(room, (Room, Building)):
-        raise ParameterError(f"room must be a Room, a Building or the path of a room file, "
-                             f"got {type(room).__name__}")
+    check_site(room)
     check_crowd(room, max_people)  # (before the mesh and the crowd are made)
-    if mesh is None and isinstance(room, Building):  # one surface mesh of levels and stairs
-        opts = {k: v for k, v in dict(mesh_options or {}).items() if k != "exit_size"}
-        if (mesh_options or {}).get("exit_size") is not None:
-            raise ParameterError("exit_size is not available for buildings")
-        mesh = triangulate_building(room, **opts)
-    elif mesh is None:
-        mesh = triangulate(room, **dict(mesh_options or {}))
+    if mesh is None:
+        mesh = mesh_site(room, **dict(mesh_options or {}))
     elif mesh_options:
         raise ParameterError("give either a mesh or mesh_options, not both")
     return room, mesh, geometry

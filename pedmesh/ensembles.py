@@ -60,7 +60,8 @@ import numpy as np
 from ._version import __version__
 from .errors import ParameterError, PedmeshError
 from .run.results import FINISHED_STATUSES
-from .mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
+from .geometry.site import check_mesh_size, mesh_site
+from .mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE
 from .parameters import DEFAULT_T_END_S
 
 __all__ = ["ensemble", "EnsembleError", "member_seeds", "parse_sweep", "run_member"]
@@ -139,13 +140,7 @@ def _room_and_mesh(geometry: str, mesh_options: Mapping[str, Any],
     if key not in _ROOMS:
         room = load_room(geometry)
         _ROOMS.clear()  # one room at a time is enough for an ensemble
-        if hasattr(room, "levels"):  # a building: one surface mesh of its levels and stairs
-            from .mesh.building import triangulate_building
-
-            opts = {k: v for k, v in mesh_options.items() if k != "exit_size"}
-            _ROOMS[key] = (room, triangulate_building(room, **opts, max_cells=max_cells))
-        else:
-            _ROOMS[key] = (room, triangulate(room, **dict(mesh_options), max_cells=max_cells))
+        _ROOMS[key] = (room, mesh_site(room, **dict(mesh_options), max_cells=max_cells))
     return _ROOMS[key]
 
 
@@ -683,7 +678,7 @@ def _check_room(geometry: str, preset: str | None, mesh_options: Mapping[str, An
     room = load_room(geometry)
     check_crowd(room, max_people)  # (the crowd limit, --max-people)
     preset = resolve_preset(preset, room)
-    _check_mesh_size(room, mesh_options, max_cells)
+    check_mesh_size(room, dict(mesh_options), max_cells)
     return preset
 
 
@@ -757,31 +752,6 @@ def _frame(rows: Mapping[str, dict], plan: list[_Member], columns: list[str]):
         if c not in f:
             f[c] = None
     return f[columns]
-
-
-def _check_mesh_size(room, mesh_options: Mapping[str, Any], max_cells: float | None) -> None:
-    """The mesher's size check, on the estimate, before any member is sent out."""
-    from .errors import MeshError
-    from .mesh.triangulate import MAX_CELLS, check_max_cells, estimate_cells, size_fields
-
-    check_max_cells(max_cells)
-    if hasattr(room, "levels"):  # a building: each level as a room (its stairs are small)
-        if mesh_options.get("exit_size") is not None:
-            raise MeshError("--exit-size is not available for buildings")
-        for lv in room.levels:
-            _check_mesh_size(lv.room, {**mesh_options, "exit_size": None}, max_cells)
-        return
-    limit = MAX_CELLS if max_cells is None else max_cells
-    if not math.isfinite(limit) or not (mesh_options["max_area"] > 0):
-        return  # no limit, or a bad max_area that the mesher reports itself
-    fields = size_fields(room, feature_area=mesh_options.get("feature_area"),
-                         exit_size=mesh_options.get("exit_size") if room.exits else None,
-                         max_area=mesh_options["max_area"])
-    n = estimate_cells(room, mesh_options["max_area"], fields)
-    if n > limit:
-        raise MeshError(f"the members' mesh would have about {n:,.0f} triangles, more than "
-                        f"the limit of {limit:,.0f}; use a larger max_area, or raise the limit "
-                        "(--max-cells N)")
 
 
 def _compute(todo, rows, plan, model, geometry, t_end, mesh_options, preset, seeded, out,

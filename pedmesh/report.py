@@ -279,9 +279,9 @@ class _Run:
         except PedmeshError as exc:
             self.notes.append(f"the room file {path} could not be read: {exc}")
             return None
-        from .geometry import Building
+        from .geometry.site import is_building
 
-        if isinstance(room, Building):  # drawn from its mesh, laid out flat (frames)
+        if is_building(room):  # drawn from its mesh, laid out flat (frames)
             return None
         return room
 

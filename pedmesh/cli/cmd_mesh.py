@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from ..mesh.triangulate import triangulate
 
 HELP = "triangulate a room and write the mesh (VTU) with boundary tags"
 DESCRIPTION = """\
@@ -60,24 +59,17 @@ def mesh_from_args(args: argparse.Namespace, *, buildings: bool = False, check=N
     stairs) only where the command handles one (``buildings``), else a one-line error.
     ``check``: called with the room before it is meshed (e.g. the crowd's size)."""
     from ..errors import PedmeshError
-    from ..geometry import Building
+    from ..geometry.site import is_building, mesh_site
     from ..io import load_room
 
     room = load_room(args.geometry)
     if check is not None:
         check(room)
-    if isinstance(room, Building):
-        if not buildings:
-            raise PedmeshError(f"{args.geometry}: '{room.name}' is a building (levels and "
-                               f"stairs); `pedmesh {args.command}` takes a single-level room "
-                               "for now (`pedmesh mesh` meshes a building)")
-        from ..mesh.building import triangulate_building
-
-        if args.exit_size is not None:
-            raise PedmeshError("--exit-size is not available for buildings")
-        opts = {k: v for k, v in mesh_options(args).items() if k != "exit_size"}
-        return room, triangulate_building(room, **opts, max_cells=args.max_cells)
-    return room, triangulate(room, **mesh_options(args), max_cells=args.max_cells)
+    if is_building(room) and not buildings:
+        raise PedmeshError(f"{args.geometry}: '{room.name}' is a building (levels and "
+                           f"stairs); `pedmesh {args.command}` takes a single-level room "
+                           "for now (`pedmesh mesh` meshes a building)")
+    return room, mesh_site(room, **mesh_options(args), max_cells=args.max_cells)
 
 
 def mesh_options(args: argparse.Namespace) -> dict:
@@ -108,10 +100,10 @@ def _building_summary(args: argparse.Namespace, building, mesh) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..mesh import TriMesh
+    from ..geometry.site import is_building
 
     room, mesh = mesh_from_args(args, buildings=True)
-    if not isinstance(mesh, TriMesh):
+    if is_building(room):
         return _building_summary(args, room, mesh)
     s = mesh.summary()
     exits = ", ".join(f"{n} {L:.3f} m" for n, L in s["exits"].items()) or "none"

@@ -161,9 +161,9 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
     if suffix not in FORMATS:
         raise PedmeshError(f"{path}: unsupported 3-D format '{suffix or '(none)'}' "
                            f"(use {', '.join(FORMATS)})")
-    from ..geometry import Building
+    from ..geometry.site import is_building
 
-    if isinstance(room, Building):
+    if is_building(room):
         if kw.get("positions") is not None:
             raise PedmeshError("a building's crowd cannot be drawn yet (--run takes a room)")
         kw.pop("positions", None)

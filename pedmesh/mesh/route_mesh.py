@@ -109,7 +109,9 @@ def route_mesh(site, *, resolution: float, kernel: float, clearance: float = 0.0
     h_open = max(open_edge_of(kernel), float(resolution))
     h_wall = max(OPEN_EDGE_PER_KERNEL * float(clearance), float(resolution)) \
         if clearance and clearance > 0 else None
-    if hasattr(site, "levels"):  # a building (not kept: its levels are meshed anew)
+    from ..geometry.site import is_building
+
+    if is_building(site):  # (not kept: its levels are meshed anew)
         from .building import triangulate_building
 
         return triangulate_building(

@@ -371,7 +371,9 @@ def _safety(plan: RunPlan, writer, result: Mapping[str, Any]) -> dict:
         from .safety import safety_from_memory, safety_measures
 
         room = plan.room if plan.room is not None else getattr(plan.mesh, "room", None)
-        if hasattr(room, "levels"):
+        from ..geometry.site import is_building
+
+        if is_building(room):
             return {"error": "the crowd-safety measures are not computed for buildings "
                              "(levels and stairs) yet"}
         # a run given its own start positions: its people are not the start areas'

@@ -90,7 +90,7 @@ def building_layout(summary: dict, run_dir: Path,
     """The layout of a building run (``summary`` its summary.json) and a note; ``(None,
     note)`` where the room file is missing, is not a building, or no longer gives the
     frames' mesh (``n_cells`` cells)."""
-    from ..geometry import Building
+    from ..geometry.site import is_building
     from ..io import load_room
 
     settings = summary.get("settings") or {}
@@ -102,16 +102,16 @@ def building_layout(summary: dict, run_dir: Path,
         room = load_room(path)
     except PedmeshError as exc:
         return None, f"the room file {path} could not be read: {exc}"
-    if not isinstance(room, Building):
+    if not is_building(room):
         return None, ""
+    from ..geometry.site import mesh_site
     from ..mesh.atlas import build_atlas
-    from ..mesh.building import triangulate_building
     from ..mesh.triangle_mesh import BoundaryKind
 
     opts = {k: v for k, v in (settings.get("mesh") or {}).items()
             if k in ("max_area", "min_angle", "feature_area") and v is not None}
     try:
-        surface = triangulate_building(room, **opts)
+        surface = mesh_site(room, **opts)
     except PedmeshError as exc:
         return None, f"the building {path} could not be meshed again: {exc}"
     if n_cells is not None and surface.n_triangles != n_cells:

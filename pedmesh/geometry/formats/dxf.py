@@ -261,6 +261,8 @@ def write_dxf(room: Room | Building, path: str | Path) -> None:
     """Write a room (or a building) as a DXF drawing with one layer per element."""
     import ezdxf
 
+    from ..site import is_building
+
     doc = ezdxf.new("R2010")
     doc.units = ezdxf.units.M
     msp = doc.modelspace()
@@ -270,7 +272,7 @@ def write_dxf(room: Room | Building, path: str | Path) -> None:
             doc.layers.add(layer)
         msp.add_lwpolyline([tuple(p) for p in pts], close=closed, dxfattribs={"layer": layer})
 
-    if isinstance(room, Building):
+    if is_building(room):
         b = building_to_dict(room)
         for lv, level in zip(b["levels"], room.levels):
             _write_room(msp, add, lv, f"{lv['name']}.", "room", level.room.description)

@@ -297,7 +297,9 @@ def read_native(path: str | Path) -> Room | Building:
 
 def write_native(room: Room | Building, path: str | Path) -> None:
     """Write ``room`` (or a building) in the native format."""
-    data = building_to_dict(room) if isinstance(room, Building) else room_to_dict(room)
+    from ..site import is_building
+
+    data = building_to_dict(room) if is_building(room) else room_to_dict(room)
     Path(path).write_text(_dumps(data), encoding="utf-8")
 
 

@@ -58,7 +58,9 @@ def initial_density(room, mesh) -> np.ndarray:
 def area_densities(room, mesh) -> list[np.ndarray]:
     """:func:`initial_density` of each start area separately (a list of (m,) arrays). A
     building's (``mesh`` its surface) are those of its levels' start areas, in order."""
-    if hasattr(room, "levels"):
+    from ...geometry.site import is_building
+
+    if is_building(room):
         return _building_area_densities(room, mesh)
     return _area_densities(room.start_areas, room.walkable, mesh.points, mesh)
 
