@@ -214,6 +214,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
                                           density_l1(mesh=mesh, rho1=r1, rho2=r0) / n0)
         rows.append(row)
     _write_tables(out, rows, labels[0])
+    _write_stairs(out, runs)
     diagrams = _plots(out, room, mesh, runs, n0, density_times) if plots else {}
     return ComparisonResult(runs, rows, out, diagrams)
 
@@ -240,6 +241,36 @@ def _write_tables(out: Path, rows: list[dict], ref: str) -> None:
         lines.append("| " + " | ".join(_fmt(r.get(k), 4 if "distance" in k or "L1" in k else 1)
                                        for k in keys) + " |")
     (out / "comparison.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _write_stairs(out: Path, runs: dict) -> None:
+    """A building's stair use per model (summary.json's "stairs",
+    :mod:`pedmesh.analysis.stairs`): stairs.csv, and a table added to comparison.md."""
+    keys = ("people", "down", "up", "first", "last", "peak_flow", "peak_density")
+    rows = [{"label": lab, "stair": name, **{k: u.get(k) for k in keys}}
+            for lab, res in runs.items()
+            for name, u in (res.summary.get("stairs") or {}).items() if isinstance(u, dict)]
+    if not rows:
+        return
+    with open(out / "stairs.csv", "w", newline="", encoding="utf-8") as f:
+        w = csv.DictWriter(f, fieldnames=["label", "stair", *keys])
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if v is None else v) for k, v in r.items()})
+    lines = ["", "Stair use (people who stepped on, first and last on [s], peak flow over "
+             "10 s [ped/s], peak density on the stair [ped/m^2]).", "",
+             "| stair | " + " | ".join(runs) + " |", "|" + "---|" * (len(runs) + 1)]
+    for name in dict.fromkeys(r["stair"] for r in rows):
+        cells = []
+        for lab in runs:
+            u = next((r for r in rows if r["label"] == lab and r["stair"] == name), None)
+            cells.append("-" if u is None else
+                         f"{_fmt(u['people'], 1)} people, {_fmt(u['first'], 1)}-"
+                         f"{_fmt(u['last'], 1)} s, {_fmt(u['peak_flow'], 2)} /s, "
+                         f"{_fmt(u['peak_density'], 2)} /m^2")
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    with open(out / "comparison.md", "a", encoding="utf-8") as f:
+        f.write("\n".join(lines) + "\n")
 
 
 def _plots(out, room, mesh, runs, n0, density_times) -> dict:

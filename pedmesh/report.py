@@ -1268,6 +1268,35 @@ def _exit_table(runs: Sequence[_Run]) -> str:
     return _table(head, rows)
 
 
+def _stair_table(runs: Sequence[_Run]) -> str:
+    """Per stair of a building run: people (down / up), first and last use, peak flow and
+    peak density ("" if no run has stairs)."""
+    rows = []
+    for r in runs:
+        stairs = r.summary.get("stairs")
+        if not isinstance(stairs, dict):
+            continue
+        for name, u in stairs.items():
+            if not isinstance(u, dict):
+                continue
+            flow = u.get("peak_flow")
+            rho = u.get("peak_density")
+            row = [f"'{_esc(name)}'", _people(u.get("people")),
+                   f"{_people(u.get('down'))} / {_people(u.get('up'))}",
+                   _sec(u.get("first"), "–"), _sec(u.get("last"), "–"),
+                   (f"{flow:.2f} /s at {_sec(u.get('peak_flow_t'), '?')}"
+                    if _is_num(flow) and flow > 0 else "–"),
+                   (f"{rho:.2f} /m² at {_sec(u.get('peak_density_t'), '?')}"
+                    if _is_num(rho) and rho > 0 else "–")]
+            rows.append(([_esc(r.label)] if len(runs) > 1 else []) + row)
+    if not rows:
+        return ""
+    head = (["run"] if len(runs) > 1 else []) + [
+        "stair", "people", "down / up", "first on", "last on",
+        "peak flow (10 s)", "peak density"]
+    return _table(head, rows)
+
+
 def _slider(uid: str, images: list[str], labels: list[str], alt: str) -> str:
     if not images:
         return '<p class="na">No density frames were saved, so there are no snapshots.</p>'
@@ -1460,6 +1489,14 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
                  + (_img(flow, "flow through the exits against time") if flow else "")
                  + "<p>People per exit as the run counted them (a continuum model's "
                  "integrated outflow); first and last passage where known.</p>")
+    stairs = _stair_table(runs)
+    if stairs:
+        section("stairs", "Stair use", stairs + (
+            "<p>Per stair: the people who stepped onto it (down from its top level, up "
+            "from its bottom level), when the first stepped on and the last was on it, the "
+            "most people stepping on within 10 s (per second), and the most people on it "
+            "at once over its area. A continuum model's people are its inflow through "
+            "the stair's edges, integrated: an estimate, within 7 % in our tests.</p>"))
     maps = ""
     peak = _maps_figure(runs, "peak")
     if peak:

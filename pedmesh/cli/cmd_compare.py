@@ -16,7 +16,8 @@ evacuation.png, outflow.png, fundamental.png, density.png, comparison.csv and
 comparison.md into the output directory. The first model is the reference that the
 distances are measured against: the mean |N_out(t) - N_ref(t)|/N of the evacuation curves,
 the T90 difference, the relative distance of the outflow curves and the L1 distance of the
-density fields at a few times.
+density fields at a few times. On a building, stairs.csv and a table in comparison.md give
+each model's use of each stair (people, first and last on, peak flow and density).
 
 Models are comma-separated, each optionally with parameters: NAME[:PARAM=VALUE...].
 

@@ -187,6 +187,11 @@ class MacroRun:
         self.max_mass_error = 0.0
         self._curve_t = [0.0]
         self._curve_n = [0.0]
+        #: a building's stair use (:mod:`pedmesh.analysis.stairs`; None on a room)
+        self.stair_use = None
+        building = room if room is not None else getattr(mesh, "building", None)
+        if self.atlas is not None and building is not None:
+            self._set_stair_use(building)
 
     # ------------------------------------------------------------------ contract
     @property
@@ -267,7 +272,63 @@ class MacroRun:
         return np.array(self.state.outflow, float)
 
     def record(self, writer, final: bool = False) -> None:
-        """Nothing beyond the driver's samples and frames (the run contract's hook)."""
+        """On a building: the inflow through each stair's edges from the levels, integrated
+        over every step (the trapezoid rule), and each sample interval the people on each
+        stair (its mass) (:mod:`pedmesh.analysis.stairs`)."""
+        if self.stair_use is None:
+            return
+        t = self.state.t
+        Q = self.state.Q
+        rho = Q[:, 0]
+        if t >= self._next_stair_sample - 1e-9 or final:
+            self._next_stair_sample = t + self.sample_interval
+            mass = np.bincount(self.atlas.glued.piece, weights=rho * self.fv_mesh.areas,
+                               minlength=len(self.mesh.pieces))
+            self.stair_use.occupancy(t, mass)
+        if self.model.n_vars == 1:
+            vel = self.model.speed(rho)[:, None] * self.solver.e_cell
+        else:
+            vel = self.model.velocity(Q)
+        t0, f0 = self._stair_flux
+        f = np.zeros(len(self._stair_rows))
+        q = rho[:, None] * vel
+        for k, (across, nl, _, _) in enumerate(self._stair_rows):
+            f[k] = np.sum(np.maximum(0.0, np.sum(q[across] * nl, axis=1)))
+        if t > t0:
+            for k, (_, _, stair, frm) in enumerate(self._stair_rows):
+                self.stair_use.enter(t, stair, 0.5 * (f0[k] + f[k]) * (t - t0), frm)
+        self._stair_flux = (t, f)
+
+    def _set_stair_use(self, building) -> None:
+        """The stair use's record and, per stair edge, the stair's cells along it and the
+        edges' normals (out of the level, into the stair) times their lengths [m]: the
+        inflow is the stair cells' momentum rho u through the edge, an estimate within 7 %
+        (on the office eos, rdue and pw count 243.4, 231.6 and 240.1 of the 240 people who
+        come down the first floor's two stairs; on tests/building_data.py's TWO 31.4, 28.0
+        and 29.7 of 30; the level's cells, whose speed is not the stair's, or the mean of
+        both sides count up to 38 % more or 7 % fewer)."""
+        from scipy.spatial import cKDTree
+
+        from ...analysis.stairs import StairUse
+
+        self.stair_use = StairUse(self.mesh, building)
+        op = self.atlas.open
+        mid = op.points[op.edges].mean(axis=1)
+        self._stair_rows = []
+        for r in self.atlas.hinges:
+            k, frm, to = int(r[0]), int(r[1]), int(r[2])
+            if not self.stair_use.is_stair(to) or self.stair_use.is_stair(frm):
+                continue
+            e = op.exit_edges(k)
+            back = [int(b[0]) for b in self.atlas.hinges
+                    if int(b[1]) == to and int(b[2]) == frm]
+            other = np.concatenate([op.exit_edges(b) for b in back])
+            # the same edge on the stair's side: its midpoint carried over by the shift
+            _, j = cKDTree(mid[other]).query(mid[e] + r[3:5])
+            nl = op.edge_normals[e] * op.edge_lengths[e][:, None]
+            self._stair_rows.append((op.edge_triangles[other[j], 0], nl, to, frm))
+        self._stair_flux = (self.state.t, np.zeros(len(self._stair_rows)))
+        self._next_stair_sample = self.state.t
 
     def parameters(self) -> dict[str, Any]:
         return {**self.model.parameters(), **dataclasses.asdict(self.fv_options),
@@ -339,6 +400,7 @@ class MacroRun:
             "exits": {n: float(v) for n, v in zip(self.mesh.exit_names, self.state.outflow)},
             "mass_error_max": self.max_mass_error,
             "exit_condition": self.solver.exit_kind,
+            **({"stairs": self.stair_use.summary()} if self.stair_use is not None else {}),
         }
 
 

@@ -107,6 +107,9 @@ class SurfaceSimulation(Simulation):
         super().__init__(atlas.open, positions, velocities, **kwargs)
         self._hinges = True
         self.n_crossings = 0
+        #: (t [s], from piece, to piece) of every crossing of a stair edge not yet read
+        #: (:class:`BuildingSFMRun` reads them into its stair use)
+        self.crossing_log: list[tuple[float, int, int]] = []
         self._set_hinge_lists()
 
     def _set_hinge_lists(self) -> None:
@@ -234,6 +237,8 @@ class SurfaceSimulation(Simulation):
                 t = -1
             if t < 0:  # moving along the edge or back: the nearest triangle of the far side
                 t = self._nearest_on(p, int(self._hinge_to[k]))
+            self.crossing_log.append((self.t, int(self.atlas.glued.piece[self.tri[i]]),
+                                      int(self._hinge_to[k])))
             self.x[i] = p
             self.tri[i] = t
             ex[i] = -1
@@ -356,6 +361,11 @@ class BuildingSFMRun(SFMRun):
         self.mesh = mesh
         self._finish_init(static_routes, trajectory_rate, None)
         self._piece_names = [p.name for p in mesh.pieces]
+        from ...analysis.stairs import StairUse
+
+        #: the stairs' use (:mod:`pedmesh.analysis.stairs`), in summary.json's "stairs"
+        self.stair_use = StairUse(mesh, building)
+        self._next_stair_sample = 0.0
 
     # -------------------------------------------------------------- outputs
     def exit_counts(self) -> np.ndarray:
@@ -425,9 +435,23 @@ class BuildingSFMRun(SFMRun):
         np.maximum.at(rho, out.to_surface, sim.density_at(out.open.points))
         writer.density_frame(sim.t, self.surface, point_data={"density": rho})
 
+    def record(self, writer, final: bool = False) -> None:
+        """As on a room, and the stairs' use: every crossing onto a stair, and each sample
+        interval the people on each stair."""
+        super().record(writer, final)
+        sim, use = self.sim, self.stair_use
+        for t, frm, to in sim.crossing_log:
+            if use.is_stair(to) and not use.is_stair(frm):
+                use.enter(t, to, 1.0, frm)
+        sim.crossing_log.clear()
+        if sim.t >= self._next_stair_sample - 1e-9 or final:
+            use.occupancy(sim.t, np.bincount(sim.piece_of(), minlength=len(self._piece_names)))
+            self._next_stair_sample = sim.t + self.sample_interval
+
     def summary(self):
         out = super().summary()
         out["exits"] = {k: out["exits"][k] for k in self.mesh.exit_names}
         out["stair_edge_crossings"] = int(self.sim.n_crossings)
+        out["stairs"] = self.stair_use.summary()
         return out
 
