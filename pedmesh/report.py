@@ -1187,6 +1187,8 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
         if _is_num(pk.get("x")) and _is_num(pk.get("y")):
             where = f" at x = {_num(pk['x'])} m, y = {_num(pk['y'])} m"
         over = f" (over {_esc(pk.get('over'))})" if pk.get("over") is not None else ""
+        if pk.get("level") is not None:  # a building's: in that level's plan
+            where = f" on level '{_esc(pk['level'])}'" + where
         rows.append((f"peak density{over}",
                      f"{_num(pk.get('value'))} {_esc(unit)} at t = {_num(pk.get('t'))} s"
                      + where))
@@ -1216,6 +1218,8 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
             rows.append(("crowd pressure ρ Var(v) (largest)",
                          f"{_num(cp.get('max'))} {_esc(cp.get('unit') or '')} at t = "
                          f"{_num(cp.get('t'))} s{where}"))
+        elif "levels" in sf:
+            rows.append(("crowd pressure ρ Var(v)", "not computed for buildings yet"))
         else:
             rows.append(("crowd pressure ρ Var(v)", "not applicable (no particle velocities)"))
     for name, e in (sf.get("exits") or {}).items():
@@ -1266,6 +1270,35 @@ def _exit_table(runs: Sequence[_Run]) -> str:
     head = (["run"] if len(runs) > 1 else []) + ["exit", "people", "share",
                                                   "first passage", "last passage"]
     return _table(head, rows)
+
+
+def _level_safety_table(runs: Sequence[_Run]) -> str:
+    """Per level of a building run: peak density, area-time above the thresholds, worst
+    level of service ("" if no run has levels)."""
+    rows = []
+    for r in runs:
+        levels = (r.safety or {}).get("levels")
+        if not isinstance(levels, dict):
+            continue
+        for name, sf in levels.items():
+            if not isinstance(sf, dict):
+                continue
+            pk = sf.get("peak_density") or {}
+            at = sf.get("area_time_above") or {}
+            row = [f"'{_esc(name)}'",
+                   f"{_num(pk.get('value'), 3)} /m² at {_sec(pk.get('t'), '?')}"
+                   if _is_num(pk.get("value")) else "–"]
+            row += [_num(at.get(k), 3) for k in _THRESHOLDS]
+            row.append(_esc((sf.get("level_of_service") or {}).get("worst", "–")))
+            rows.append(([_esc(r.label)] if len(runs) > 1 else []) + row)
+    if not rows:
+        return ""
+    head = (["run"] if len(runs) > 1 else []) + (
+        ["level", "peak density (1 m²)"] + [f"area-time above {k} /m² [m² s]"
+                                            for k in _THRESHOLDS] + ["worst level of service"])
+    return ("<h3>Per level</h3>" + _table(head, rows, "safety")
+            + "<p>The same measures on each level alone (positions in the level's own plan); "
+            "the stairs' peak densities are in the stair table.</p>")
 
 
 def _stair_table(runs: Sequence[_Run]) -> str:
@@ -1513,7 +1546,7 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
                  "the worst level the cell had.</p>")
     if not maps:
         maps = '<p class="na">No density frames were saved, so there are no maps.</p>'
-    maps += "<h3>Crowd-safety measures</h3>" + _safety_table(runs)
+    maps += "<h3>Crowd-safety measures</h3>" + _safety_table(runs) + _level_safety_table(runs)
     section("density", "Density and safety", maps)
     images, labels = _snapshots(runs, frames)
     section("snapshots", "Density over time",

@@ -371,11 +371,8 @@ def _safety(plan: RunPlan, writer, result: Mapping[str, Any]) -> dict:
         from .safety import safety_from_memory, safety_measures
 
         room = plan.room if plan.room is not None else getattr(plan.mesh, "room", None)
-        from ..geometry.site import is_building
-
-        if is_building(room):
-            return {"error": "the crowd-safety measures are not computed for buildings "
-                             "(levels and stairs) yet"}
+        if room is None:
+            room = getattr(plan.mesh, "building", None)
         # a run given its own start positions: its people are not the start areas'
         n0 = None if "positions" in plan.options else result.get("n_initial")
         if getattr(writer, "dir", None) is not None:

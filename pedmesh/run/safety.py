@@ -20,6 +20,7 @@ import numpy as np
 from ..analysis import safety as S
 from ..errors import PedmeshError
 from ..parameters import DEFAULTS as D
+from ..geometry.site import is_building
 from .tables import crossings_from_rows, read_number_table, read_rows
 
 __all__ = ["safety_measures", "safety_from_memory", "write_safety_vtu", "SAFETY_VTU",
@@ -161,22 +162,63 @@ def _room_of(summary: dict, d: Path | None):
     return None
 
 
-def _compute(data: _RunData, room, n_initial) -> tuple[dict, dict[str, np.ndarray]]:
-    """The summary record and the per-cell fields of safety.vtu."""
+def _building_view(data: _RunData, surface) -> tuple[_RunData, np.ndarray, list, np.ndarray]:
+    """``data`` of a building run seen on its atlas (:mod:`pedmesh.mesh.atlas`: every
+    level and stair flat, apart from each other, so that a 1 m^2 disk never reaches from one
+    floor to the one above), its crowd pressure left out (its frames are in 3-D); and the
+    piece of each cell, the pieces and their atlas offsets [m]."""
+    import dataclasses
+
+    from ..mesh.atlas import build_atlas
+
+    atlas = build_atlas(surface)
+    view = dataclasses.replace(data, points=np.asarray(atlas.open.points)[:, :2],
+                               triangles=np.asarray(atlas.open.triangles), pedestrians=None)
+    return view, np.asarray(atlas.glued.piece), list(surface.pieces), atlas.offset
+
+
+def _density_record(t, local, areas, centroids, over: str) -> tuple[dict, object, np.ndarray]:
+    """The density part of the record (peak, area and time above the thresholds, level of
+    service) of the cells' 1 m^2 densities ``local`` (F, m); and the peak and the worst
+    level of service per cell."""
+    peak = S.peak_density(t=t, density=local, centroids=centroids)
+    thresholds = S.DENSITY_THRESHOLDS
+    area_time = S.area_time_above(t=t, density=local, areas=areas, thresholds=thresholds)
+    time_top = S.time_above(t=t, density=local, thresholds=thresholds)
+    worst = S.worst_level_of_service(density=local, scale=LOS_SCALE)
+    counts = np.bincount(worst, minlength=6)
+    return {
+        "peak_density": {"value": peak.value, "unit": "ped/m^2", "t": peak.t, "x": peak.x,
+                         "y": peak.y, "over": over},
+        "area_time_above": {f"{k:g}": v for k, v in area_time.items()},
+        "area_time_unit": "m^2 s",
+        "time_above": {f"{k:g}": v for k, v in time_top.items()},
+        "level_of_service": {
+            "scale": f"Fruin {LOS_SCALE}",
+            "worst": S.los_letter(int(worst.max())) if len(worst) else "A",
+            "cells_by_worst": {S.LOS_LETTERS[k]: int(counts[k]) for k in range(6)}},
+    }, peak, worst
+
+
+def _compute(data: _RunData, room, n_initial, mesh=None) -> tuple[dict, dict[str, np.ndarray]]:
+    """The summary record and the per-cell fields of safety.vtu. A building's (``mesh``
+    its surface) are measured on its atlas, with a record per level under ``"levels"``
+    (positions in the level's plan)."""
+    from ..geometry.site import is_building, site_levels
+
+    building = is_building(room) and mesh is not None
+    if building:
+        data, piece, pieces, offset = _building_view(data, mesh)
     areas, centroids = _areas_centroids(data.points, data.triangles)
     t = data.t
     local = S.local_density(density=data.density, centroids=centroids, areas=areas)
-    peak = S.peak_density(t=t, density=local, centroids=centroids)
     r = S.ONE_SQUARE_METRE_RADIUS
     over = (f"1 m^2 disk average (cells with centroids within {r:.3f} m) of the "
             + (f"kernel density (R = {data.R:g} m) at the vertices averaged to the cells"
                if data.particle else "cell densities"))
     thresholds = S.DENSITY_THRESHOLDS
-    area_time = S.area_time_above(t=t, density=local, areas=areas, thresholds=thresholds)
-    time_top = S.time_above(t=t, density=local, thresholds=thresholds)
-    worst = S.worst_level_of_service(density=local, scale=LOS_SCALE)
+    dens_record, peak, worst = _density_record(t, local, areas, centroids, over)
     worst_q = S.worst_level_of_service(density=local, scale="queuing")
-    counts = np.bincount(worst, minlength=6)
     w = S.frame_weights(t=t)
     fields: dict[str, np.ndarray] = {
         "peak_density": peak.per_cell,
@@ -205,10 +247,15 @@ def _compute(data: _RunData, room, n_initial) -> tuple[dict, dict[str, np.ndarra
     start_areas: dict[str, float | None] = {}
     measurement: dict[str, float | None] = {}
     if room is not None:
-        names_sa = [a.name for a in room.start_areas]
+        levels = site_levels(room)
+        pairs = [(lv, a, r) for lv, _, r in levels for a in r.start_areas]
+        plain = [a.name for _, a, _ in pairs]
+        # (a building's start areas by name, with their level where a name repeats)
+        names_sa = [n if plain.count(n) == 1 else f"{lv}: {n}"
+                    for (lv, _, _), n in zip(pairs, plain)]
         start_areas = dict.fromkeys(names_sa)
         if data.crossings is not None and n_initial is not None:
-            counts_sa = [len(a.positions(room.walkable)) for a in room.start_areas]
+            counts_sa = [len(a.positions(r.walkable)) for _, a, r in pairs]
             if sum(counts_sa) == int(n_initial):
                 ids, _, et = data.crossings
                 times = np.full(int(n_initial), np.nan)
@@ -216,26 +263,39 @@ def _compute(data: _RunData, room, n_initial) -> tuple[dict, dict[str, np.ndarra
                 times[ids[ok]] = et[ok]
                 start_areas = dict(zip(names_sa, S.group_clear_times(exit_times=times,
                                                                      counts=counts_sa)))
-        for m in room.measurement_areas:
-            frac = S.cell_fractions(points=data.points, triangles=data.triangles,
-                                    polygon=m.shape)
-            content = S.area_content(density=data.density, areas=areas, fractions=frac)
-            measurement[m.name] = S.clear_time(t=t, content=content, below=CLEAR_BELOW)
+        for lv, _, r in levels:
+            shift = offset[[p.name for p in pieces].index(lv)] if building else (0.0, 0.0)
+            for m in r.measurement_areas:
+                import shapely.affinity
+
+                shape = shapely.affinity.translate(m.shape, *shift)
+                frac = S.cell_fractions(points=data.points, triangles=data.triangles,
+                                        polygon=shape)
+                content = S.area_content(density=data.density, areas=areas, fractions=frac)
+                measurement[m.name] = S.clear_time(t=t, content=content, below=CLEAR_BELOW)
 
     record = {
-        "peak_density": {"value": peak.value, "unit": "ped/m^2", "t": peak.t, "x": peak.x,
-                         "y": peak.y, "over": over},
-        "area_time_above": {f"{k:g}": v for k, v in area_time.items()},
-        "area_time_unit": "m^2 s",
-        "time_above": {f"{k:g}": v for k, v in time_top.items()},
-        "level_of_service": {
-            "scale": f"Fruin {LOS_SCALE}",
-            "worst": S.los_letter(int(worst.max())) if len(worst) else "A",
-            "cells_by_worst": {S.LOS_LETTERS[k]: int(counts[k]) for k in range(6)}},
+        **dens_record,
         "crowd_pressure": pressure,
         "exits": exits,
         "clear_times": {"start_areas": start_areas, "measurement_areas": measurement},
     }
+    if building:  # the whole building's peak in its level's plan, and a record per level
+        names = [p.name for p in pieces]
+        k = int(np.argmin(np.hypot(centroids[:, 0] - peak.x, centroids[:, 1] - peak.y))) \
+            if peak.x is not None else None
+        record["peak_density"]["level"] = names[piece[k]] if k is not None else None
+        record["levels"] = {}
+        for j, p in enumerate(pieces):
+            if p.kind != "level":
+                continue
+            cells = np.flatnonzero(piece == j)
+            sub_rec, _, _ = _density_record(t, local[:, cells], areas[cells],
+                                            centroids[cells] - offset[j], over)
+            record["levels"][p.name] = sub_rec
+        if record["peak_density"]["x"] is not None and k is not None:
+            record["peak_density"]["x"] -= float(offset[piece[k]][0])
+            record["peak_density"]["y"] -= float(offset[piece[k]][1])
     return record, fields
 
 
@@ -247,7 +307,8 @@ def write_safety_vtu(path: str | Path, *, points: np.ndarray, triangles: np.ndar
 
     from ..io.vtk import write_vtu
 
-    pts = np.asarray(points, float)[:, :2]
+    pts = np.asarray(points, float)
+    pts = pts if pts.shape[1] == 3 else pts[:, :2]  # (a building's surface in 3-D)
     tri = np.asarray(triangles)
     mesh = SimpleNamespace(points=pts, triangles=tri, n_points=len(pts),
                            n_triangles=len(tri))
@@ -279,9 +340,10 @@ def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
             (summary.get("settings") or {}).get("model_options") or {}):
         n_initial = summary.get("n_initial")  # (not for a run given its own positions)
     data = _from_folder(d, mesh, summary)
-    record, fields = _compute(data, room, n_initial)
-    if write_fields:
-        write_safety_vtu(d / SAFETY_VTU, points=data.points, triangles=data.triangles,
+    record, fields = _compute(data, room, n_initial, mesh)
+    if write_fields:  # (a building's on its surface in 3-D, over its density frames)
+        on = mesh if mesh is not None and is_building(room) else data
+        write_safety_vtu(d / SAFETY_VTU, points=on.points, triangles=on.triangles,
                          fields=fields)
     return _clean(record)
 
@@ -292,7 +354,7 @@ def safety_from_memory(writer, room, mesh, *, n_initial: float | None = None,
     :class:`~pedmesh.run.memory.MemoryWriter`) on ``mesh``."""
     if R is None:
         R = float((writer.header.get("parameters") or {}).get("R") or D["R"])
-    record, _ = _compute(_from_memory(writer, mesh, R), room, n_initial)
+    record, _ = _compute(_from_memory(writer, mesh, R), room, n_initial, mesh)
     return _clean(record)
 
 

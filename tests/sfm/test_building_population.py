@@ -156,3 +156,45 @@ def test_the_report_and_compare_show_the_stairs(tmp_path):
     assert main(["report", str(out / "sfm"), "-o", str(html)]) == 0
     text = html.read_text(encoding="utf-8")
     assert "Stair use" in text and "&#x27;stair&#x27;" in text or "'stair'" in text
+
+
+# ---------------------------------------------------------------- safety per level
+@pytest.mark.parametrize("model", ["sfm", "eos"])
+def test_safety_measures_per_level_on_a_building(tmp_path, model):
+    from pedmesh.cli import main
+
+    room = _building(tmp_path)
+    out = tmp_path / "run"
+    assert main(["run", str(room), "--model", model, "--out", str(out), "-q",
+                 "--t-end", "300"]) == 0
+    s = json.loads((out / "summary.json").read_text())["safety"]
+    assert "error" not in s, s
+    assert set(s["levels"]) == {"ground", "first"}
+    lv = s["levels"]
+    # the building's peak is its levels' largest (or a stair's), on the level it names
+    assert s["peak_density"]["value"] >= max(v["peak_density"]["value"] for v in lv.values())
+    if s["peak_density"]["level"] in lv:
+        assert s["peak_density"]["value"] == pytest.approx(
+            lv[s["peak_density"]["level"]]["peak_density"]["value"])
+    assert 0.5 < lv["first"]["peak_density"]["value"] < 9.0
+    # positions in the level's own plan (the building is 20 x 10 m)
+    for v in lv.values():
+        assert 0 <= v["peak_density"]["x"] <= 20 and 0 <= v["peak_density"]["y"] <= 10
+    if model == "sfm":
+        assert set(s["clear_times"]["start_areas"]) == {"hall", "offices"}
+        assert all(v is not None for v in s["clear_times"]["start_areas"].values())
+    assert sum(e["people"] for e in s["exits"].values()) == pytest.approx(60, abs=1.0)
+    assert (out / "safety.vtu").is_file()
+    html = tmp_path / "r.html"
+    assert main(["report", str(out), "-o", str(html)]) == 0
+    assert "Per level" in html.read_text(encoding="utf-8")
+
+
+def test_safety_measures_never_mix_stacked_floors(tmp_path):
+    # the same crowd (1 m apart: 1 /m^2) on both floors, one above the other, waiting
+    room = _building(tmp_path, {"polygon": [[2, 1], [8, 1], [8, 6], [2, 6]],
+                                "premovement": 100.0}, {"premovement": 100.0})
+    s = pedmesh.simulate(room, t_end=5.0).summary["safety"]
+    for name in ("ground", "first"):
+        assert s["levels"][name]["peak_density"]["value"] == pytest.approx(1.0, abs=0.3)
+    assert s["peak_density"]["value"] == pytest.approx(1.0, abs=0.3)  # (2 if mixed)
