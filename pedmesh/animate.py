@@ -117,6 +117,10 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
     pts, tri, rho = frames.field(int(pick[0]))
     x0, y0 = pts.min(axis=0)
     x1, y1 = pts.max(axis=0)
+    if frames.layout is not None and frames.layout.panels:  # (the levels' panels, names)
+        box = np.asarray(frames.layout.panels, float)
+        x0, y0 = box[:, :2].min(axis=0) + 0.5
+        x1, y1 = box[:, 2:].max(axis=0) - 0.5
     aspect = (y1 - y0) / max(x1 - x0, 1e-9)
     width = 8.0
     fig, ax = plt.subplots(figsize=(width, max(2.5, min(8.0, width * aspect + 1.2))),

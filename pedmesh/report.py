@@ -817,8 +817,8 @@ def _plan_figure(run: _Run) -> str:
     if room is not None:
         title = f"room '{room.name}'"
     elif frames is not None and frames.layout is not None:
-        title = (f"building '{run.s.get('room', '?')}': levels and stairs side by side, "
-                 "stair edges dashed")
+        title = (f"building '{run.s.get('room', '?')}': one panel per level; stairs dashed, "
+                 "with the level each leads to")
     else:
         title = "mesh outline"
     ax.set_title(title, fontsize=10)

@@ -375,3 +375,44 @@ def test_report_in_headless_chromium(browser, reports, kind):
     browser.execute_script("window.scrollTo(0, 0)")
     _not_blank(browser.get_screenshot_as_png())
     _not_blank(img.screenshot_as_png)
+
+
+@pytest.fixture(scope="module")
+def office_report(tmp_path_factory, geometries_dir):
+    """The report of the shipped office (a five-level building) under eos."""
+    from pedmesh.cli import main
+
+    tmp = tmp_path_factory.mktemp("office")
+    run = tmp / "office-eos"
+    assert main(["run", str(geometries_dir / "office.json"), "--model", "eos", "--out",
+                 str(run), "-q"]) == 0
+    return write_report([run], tmp / "office.html"), run
+
+
+def test_building_report_names_every_level_and_stair(browser, office_report,
+                                                     geometries_dir):
+    """Issue 45: each level's and each stair's name on the page, and the per-level safety
+    and per-stair tables filled."""
+    from selenium.webdriver.common.by import By
+
+    from pedmesh.io import load_room
+
+    path, run = office_report
+    office = load_room(geometries_dir / "office.json")
+    browser.get(path.resolve().as_uri())
+    assert browser.execute_script("return document.readyState") == "complete"
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+    text = browser.find_element(By.TAG_NAME, "body").text
+    for lv in office.levels:
+        assert f"'{lv.name}'" in text, lv.name
+    for st in office.stairs:
+        assert f"'{st.name}'" in text, st.name
+    tables = browser.find_elements(By.CSS_SELECTOR, "#stairs table, #density table.safety")
+    assert len(tables) >= 3  # the stairs, the building's measures and the levels'
+    for t in tables:
+        assert len(t.find_elements(By.CSS_SELECTOR, "tbody tr")) > 0
+    per_level = browser.find_elements(By.XPATH, "//h3[text()='Per level']/following::table[1]"
+                                                "//tbody/tr")
+    assert len(per_level) == len(office.levels)
+    stairs = browser.find_elements(By.XPATH, "//section[@id='stairs']//tbody/tr")
+    assert len(stairs) == len(office.stairs)

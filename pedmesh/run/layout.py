@@ -2,10 +2,12 @@
 
 A building's frames are in 3-D: drawn in plan, its floors would lie on top of each other.
 :func:`building_layout` rebuilds the run's surface mesh from the room file and the mesh
-settings the run recorded, checks it is the frames' mesh, and returns its atlas
-(:class:`~pedmesh.mesh.atlas.Atlas`): every level and stair in its own chart, side by side
-in one plane, stacked floors apart, the cells in the frames' order. Pedestrians go there
-by the level or stair their frame names (the ``piece`` array of pedestrians.pvd).
+settings the run recorded, checks it is the frames' mesh, and lays it out as people read
+building plans (:class:`BuildingLayout`): one panel per level in its own plan coordinates,
+each stair where it is, labelled with its name and the level it leads to, on both levels
+it joins, the start areas with their counts; the cells in the frames' order. Pedestrians
+go there by the level or stair their frame names (the ``piece`` array of
+pedestrians.pvd).
 """
 
 from __future__ import annotations
@@ -44,11 +46,18 @@ def find_room_file(geometry: str | None, base: Path,
 
 @dataclass(frozen=True, eq=False)
 class BuildingLayout:
-    """A building's atlas for drawing: ``points`` (n, 2) [m] and ``triangles`` (m, 3) (cell
-    t is the frames' cell t), ``walls`` (k, 2, 2) [m] the walls and obstacle sides,
-    ``exits`` (e, 2, 2) [m] the building's exits, ``stair_edges`` (j, 2, 2) [m] the stair
-    edges (each on both of its pieces) and ``labels`` the name of each level with a point
-    [m] inside it."""
+    """A building drawn as people read building plans: one panel per level, in the
+    level's own plan coordinates shifted to its panel, the levels in order left to right
+    and top to bottom; each stair drawn in plan where it is, its cells on its bottom level's
+    panel and its outline on both levels' panels, labelled with its name and direction.
+
+    ``points`` (n, 2) [m] and ``triangles`` (m, 3): the atlas mesh with every vertex at its
+    plan position in its panel (cell t is the frames' cell t); ``walls`` (k, 2, 2),
+    ``exits`` (e, 2, 2) and ``stair_edges`` (j, 2, 2) [m] in the panels; ``labels`` the name
+    of each level with a point [m] (its panel's top left); ``stairs`` each stair's outline
+    (s, 2) [m] on a panel with its label and a point for it; ``start_areas`` each start
+    area's outline with its name and count; ``panel_shift`` per level name, the shift [m]
+    from its plan to its panel; ``panels`` each level's panel box (x0, y0, x1, y1) [m]."""
 
     atlas: object
     points: np.ndarray
@@ -57,32 +66,51 @@ class BuildingLayout:
     exits: np.ndarray
     stair_edges: np.ndarray
     labels: tuple[tuple[str, tuple[float, float]], ...]
+    stairs: tuple = ()
+    start_areas: tuple = ()
+    panel_shift: dict | None = None
+    panels: tuple = ()
+    piece_shift: np.ndarray | None = None
 
     def crowd(self, xyz: np.ndarray, piece: np.ndarray) -> np.ndarray:
-        """Atlas points (k, 2) [m] of 3-D positions ``xyz`` (k, 3) on pieces ``piece``."""
+        """Panel points (k, 2) [m] of 3-D positions ``xyz`` (k, 3) on pieces ``piece``:
+        their plan position shifted to the panel of their level (a stair's: its bottom
+        level's)."""
         xyz = np.asarray(xyz, float).reshape(-1, 3)
         piece = np.asarray(piece, np.int64).reshape(-1)
-        out = np.empty((len(xyz), 2))
-        for k, p in enumerate(self.atlas.surface.pieces):
-            sel = piece == k
-            if sel.any():
-                out[sel] = p.to_chart(xyz[sel]) + self.atlas.offset[k]
-        return out
+        return xyz[:, :2] + self.piece_shift[piece]
 
     def draw(self, ax, *, lw: float = 1.0, labels: bool = True) -> None:
-        """The walls (black), the exits (green), the stair edges (grey, dashed) and the
+        """The panels' frames, the walls (black), the exits (green), the stairs (grey,
+        labelled, with their edges dashed), the start areas with their counts and the
         names of the levels on a matplotlib axes."""
         from matplotlib.collections import LineCollection
+        from matplotlib.patches import Polygon as MplPolygon, Rectangle
 
+        for x0, y0, x1, y1 in self.panels:
+            ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, ec="0.8",
+                                   lw=0.6 * lw, zorder=0))
         ax.add_collection(LineCollection(self.walls, colors="k", linewidths=lw))
         ax.add_collection(LineCollection(self.exits, colors="#00a651", linewidths=4 * lw,
                                          zorder=4))
         ax.add_collection(LineCollection(self.stair_edges, colors="0.45", linewidths=0.6 * lw,
                                          linestyles="dashed"))
+        for poly, text, at in self.stairs:
+            ax.add_patch(MplPolygon(poly, closed=True, fill=False, ec="0.35", lw=0.8 * lw,
+                                    ls="--", zorder=3))
+            if labels:
+                ax.annotate(text, at, ha="center", va="center", fontsize=6, color="0.15",
+                            zorder=7)
+        for poly, text, at in self.start_areas:
+            ax.add_patch(MplPolygon(poly, closed=True, fc="#1f77b4", alpha=0.12,
+                                    ec="#1f77b4", lw=0.6 * lw, zorder=2))
+            if labels:
+                ax.annotate(text, at, ha="center", va="center", fontsize=6, color="#1f4e79",
+                            zorder=7)
         if labels:
             for name, (x, y) in self.labels:
-                ax.annotate(name, (x, y), ha="center", va="center", fontsize=7,
-                            color="0.2", alpha=0.8, zorder=6)
+                ax.annotate(name, (x, y), ha="left", va="bottom", fontsize=8,
+                            fontweight="bold", color="0.1", zorder=6)
 
 
 def building_layout(summary: dict, run_dir: Path,
@@ -118,24 +146,68 @@ def building_layout(summary: dict, run_dir: Path,
         return None, (f"the building {path} meshes into {surface.n_triangles} cells, the "
                       f"run's frames have {n_cells}: its floors are drawn on top of each other")
     atlas = build_atlas(surface)
+    return _plan_layout(room, surface, atlas), ""
+
+
+def _plan_layout(building, surface, atlas) -> BuildingLayout:
+    """The panels of :class:`BuildingLayout` for ``building`` (its surface and atlas)."""
+    import math
+
+    from ..mesh.triangle_mesh import BoundaryKind
+
+    pieces = surface.pieces
+    levels = [lv.name for lv in building.levels]
+    bottom = {st.name: st.bottom.level for st in building.stairs}
+    top = {st.name: st.top.level for st in building.stairs}
+    # the panels: every level's plan box (stairs included), the same size, in a grid
+    xy = np.asarray(surface.points)[:, :2]
+    x0, y0 = xy.min(axis=0)
+    x1, y1 = xy.max(axis=0)
+    w, h = x1 - x0, y1 - y0
+    gap = 0.12 * max(w, h) + 2.0
+    cols = max(1, min(len(levels), math.ceil(math.sqrt(len(levels) * h / max(w, 1e-9)))))
+    shift = {}
+    panels = []
+    for k, name in enumerate(levels):
+        r, c = divmod(k, cols)
+        dx, dy = c * (w + gap) - x0, -r * (h + gap) - y0
+        shift[name] = np.array([dx, dy])
+        panels.append((x0 + dx - 0.5, y0 + dy - 0.5, x1 + dx + 0.5, y1 + dy + 1.8))
+    piece_shift = np.array([shift[p.name] if p.kind == "level" else shift[bottom[p.name]]
+                            for p in pieces])
     m = atlas.open
+    tri = np.asarray(m.triangles)
+    vpiece = np.zeros(m.n_points, np.int64)
+    vpiece[tri.ravel()] = np.repeat(np.asarray(atlas.glued.piece), 3)
+    pts = xy[np.asarray(atlas.to_surface)] + piece_shift[vpiece]
     b = m.boundary_edges
     hinge = np.isin(b, atlas.hinge_edges)
     door = (m.edge_kind[b] == BoundaryKind.EXIT) & ~hinge
-    labels = []
-    for k, p in enumerate(surface.pieces):
-        if p.kind != "level":  # (the stairs are small: their names would cover them)
-            continue
-        tris = p.mesh.triangles
-        c = p.mesh.points[tris].mean(axis=1)
-        w = p.mesh.areas
-        centre = (w[:, None] * c).sum(axis=0) / w.sum()
-        # the centroid of the cell nearest the area's centre (inside an L-shaped level)
-        at = c[np.argmin(np.hypot(*(c - centre).T))] + atlas.offset[k]
-        labels.append((p.name, (float(at[0]), float(at[1]))))
-    return BuildingLayout(atlas=atlas, points=np.asarray(m.points),
-                          triangles=np.asarray(m.triangles),
-                          walls=np.asarray(m.points)[m.edges[b[~hinge & ~door]]],
-                          exits=np.asarray(m.points)[m.edges[b[door]]],
-                          stair_edges=np.asarray(m.points)[m.edges[b[hinge]]],
-                          labels=tuple(labels)), ""
+    labels = tuple((name, (float(panels[k][0] + 0.3), float(panels[k][3] - 1.5)))
+                   for k, name in enumerate(levels))
+    stairs = []
+    texts: dict[tuple, list[str]] = {}  # (stairs stacked in plan: one label of lines)
+    for st in building.stairs:
+        poly = np.asarray(st.polygon, float)
+        c = poly.mean(axis=0)
+        for lv, text in ((bottom[st.name], f"{st.name} ↑ {top[st.name]}"),
+                         (top[st.name], f"{st.name} ↓ {bottom[st.name]}")):
+            at = tuple(np.round(c + shift[lv], 1))
+            if at not in texts:
+                texts[at] = []
+                stairs.append((poly + shift[lv], texts[at], at))
+            texts[at].append(text)
+    stairs = [(poly, "\n".join(lines), at) for poly, lines, at in stairs]
+    areas = []
+    for lv in building.levels:
+        for a in lv.room.start_areas:
+            poly = np.asarray(a.polygon, float) + shift[lv.name]
+            n = len(a.positions(lv.room.walkable))
+            at = np.asarray(a.shape.representative_point().coords[0]) + shift[lv.name]
+            areas.append((poly, f"{a.name}: {n}", tuple(at)))
+    return BuildingLayout(atlas=atlas, points=pts, triangles=tri,
+                          walls=pts[m.edges[b[~hinge & ~door]]],
+                          exits=pts[m.edges[b[door]]],
+                          stair_edges=pts[m.edges[b[hinge]]],
+                          labels=labels, stairs=tuple(stairs), start_areas=tuple(areas),
+                          panel_shift=shift, panels=tuple(panels), piece_shift=piece_shift)
