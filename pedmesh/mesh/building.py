@@ -14,7 +14,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import MeshError, PedmeshError
 from .surface import Piece, SurfaceMesh
 from .triangle_mesh import BoundaryKind, TriMesh
 from .triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
@@ -122,8 +122,21 @@ def _mesh_level(lv, hinges, opts) -> TriMesh:
     mine = [hg for hg in hinges if hg["level"] == lv.name]
     extra = [Exit(hg["name"], [tuple(hg["a"] + s * (hg["b"] - hg["a"])) for s in hg["s"]])
              for hg in mine]
-    room = lv.room.with_changes(exits=tuple(lv.room.exits) + tuple(extra))
-    return _triangulate_piece(room, opts)
+    try:
+        room = lv.room.with_changes(exits=tuple(lv.room.exits) + tuple(extra))
+        return _triangulate_piece(room, opts)
+    except PedmeshError as exc:  # (in the file's words: no internal stair-edge names)
+        raise type(exc)(f"level '{lv.name}': {plain_words(str(exc))}") from None
+
+
+def plain_words(message: str) -> str:
+    """``message`` with the mesher's internal names of stair edges (``'↕hinge:NAME:END'``)
+    written as the file says them (``the END edge of stair 'NAME'``)."""
+    import re
+
+    return re.sub(re.escape(HINGE_PREFIX) + r"(.+?):(top|bottom)'?",
+                  lambda m: f"the {m.group(2)} edge of stair '{m.group(1)}'",
+                  message.replace("exit '" + HINGE_PREFIX, HINGE_PREFIX))
 
 
 def _triangulate_piece(room, opts) -> TriMesh:
@@ -144,9 +157,12 @@ def _mesh_stair(s, chart: _StairChart, hinges, opts) -> TriMesh:
     for hg in ends:
         line = np.array([hg["a"] + t * (hg["b"] - hg["a"]) for t in hg["s"]])
         exits.append(Exit(hg["name"], [tuple(p) for p in chart.to_chart(line)]))
-    room = Room(outline=[tuple(p) for p in chart.to_chart(np.asarray(s.polygon))],
-                exits=exits, name=s.name)
-    return _triangulate_piece(room, opts)
+    try:
+        room = Room(outline=[tuple(p) for p in chart.to_chart(np.asarray(s.polygon))],
+                    exits=exits, name=s.name)
+        return _triangulate_piece(room, opts)
+    except PedmeshError as exc:  # (in the file's words: no internal stair-edge names)
+        raise type(exc)(f"stair '{s.name}': {plain_words(str(exc))}") from None
 
 
 def _refine_hinges(building, hinges, levels, stairs, charts) -> bool:

@@ -198,3 +198,16 @@ def test_safety_measures_never_mix_stacked_floors(tmp_path):
     for name in ("ground", "first"):
         assert s["levels"][name]["peak_density"]["value"] == pytest.approx(1.0, abs=0.3)
     assert s["peak_density"]["value"] == pytest.approx(1.0, abs=0.3)  # (2 if mixed)
+
+
+def test_mesh_errors_use_the_files_words(tmp_path, capsys):
+    from pedmesh.cli import main
+
+    b = copy.deepcopy(TWO)  # a door on the ground floor right where the stair starts
+    b["levels"][0]["exits"].append({"name": "side", "polyline": [[8, 8.5], [8, 9.5]]})
+    p = tmp_path / "b.json"
+    p.write_text(json.dumps({"format": "pedmesh-room", "version": 1, "units": "m", **b}))
+    assert main(["mesh", str(p)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "hinge" not in err[0] and "\u2195" not in err[0], err
+    assert "level 'ground'" in err[0] and "stair 'stair'" in err[0], err
