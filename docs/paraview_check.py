@@ -5,7 +5,8 @@ spheres coloured by speed. The ParaView steps of docs/running.md are these, done
     xvfb-run -a pvbatch docs/paraview_check.py --mesh MESH.vtu OUT.png
 
 RUN_DIR is a ``pedmesh run`` folder; the frame nearest T [s] is shown (default: the middle
-of the run). With ``--mesh`` it shows a mesh written by ``pedmesh mesh -o MESH.vtu`` and
+of the run). A building's run (frames in 3-D) is shown from the front and above, its
+heights stretched (``Transform``, z x 3) so that every level shows between the others. With ``--mesh`` it shows a mesh written by ``pedmesh mesh -o MESH.vtu`` and
 its exits, picked out of the boundary line cells with a Threshold on ``boundary_kind``
 (1 wall, 2 obstacle, 3 exit). Prints what it rendered; exits non-zero with a message if
 something it needs is missing.
@@ -19,6 +20,7 @@ from paraview.simple import (  # noqa: F401 (pvbatch provides paraview.simple)
     GetActiveViewOrCreate,
     GetAnimationScene,
     Glyph,
+    Transform,
     OpenDataFile,
     Render,
     ResetCamera,
@@ -28,13 +30,17 @@ from paraview.simple import (  # noqa: F401 (pvbatch provides paraview.simple)
 )
 
 
+#: the stretch of a building's heights in the picture (levels apart)
+Z_STRETCH = 3.0
+
+
 def fail(msg):
     print(f"paraview_check: {msg}", file=sys.stderr)
     sys.exit(2)
 
 
-def ranges(source, association, name):
-    source.UpdatePipeline()
+def ranges(source, association, name, t=None):
+    source.UpdatePipeline() if t is None else source.UpdatePipeline(t)
     info = source.GetDataInformation()
     data = info.GetPointDataInformation() if association == "POINTS" \
         else info.GetCellDataInformation()
@@ -75,6 +81,13 @@ def show_run(run, png, when):
         fail(f"{run}: no density.pvd (not a pedmesh run folder?)")
     density = OpenDataFile(dens_file)
     times = list(density.TimestepValues) if density.TimestepValues else [0.0]
+    density.UpdatePipeline(times[0])
+    bounds = density.GetDataInformation().GetBounds()
+    building = bounds[5] - bounds[4] > 1e-6  # frames in 3-D: levels at their heights
+    raw = density
+    if building:
+        density = Transform(Input=raw)
+        density.Transform.Scale = [1.0, 1.0, Z_STRETCH]
     t = min(times, key=lambda x: abs(x - (when if when is not None else times[-1] / 2)))
     scene = GetAnimationScene()
     scene.UpdateAnimationUsingDataTimeSteps()
@@ -83,14 +96,14 @@ def show_run(run, png, when):
     view.ViewTime = t
     d = Show(density, view)
     # continuum runs: cell data rho; social force runs: vertex data density
-    if ranges(density, "CELLS", "rho") is not None:
+    if ranges(raw, "CELLS", "rho", t) is not None:
         field = ("CELLS", "rho")
-    elif ranges(density, "POINTS", "density") is not None:
+    elif ranges(raw, "POINTS", "density", t) is not None:
         field = ("POINTS", "density")
     else:
         fail(f"{dens_file}: neither cell data 'rho' nor point data 'density'")
     ColorBy(d, field)
-    lo, hi = ranges(density, *field)
+    lo, hi = ranges(raw, *field, t)
     d.RescaleTransferFunctionToDataRange(True, False)
     d.SetScalarBarVisibility(view, True)
     line = f"t = {t:g} s: {field[1]} in [{lo:.3g}, {hi:.3g}] ped/m^2"
@@ -101,6 +114,9 @@ def show_run(run, png, when):
         n = peds.GetDataInformation().GetNumberOfPoints()
         if ranges(peds, "POINTS", "speed") is None:
             fail(f"{peds_file}: no point array 'speed' at t = {t:g} s")
+        if building:
+            peds = Transform(Input=peds)
+            peds.Transform.Scale = [1.0, 1.0, Z_STRETCH]
         g = Glyph(Input=peds, GlyphType="Sphere")
         g.ScaleArray = ["POINTS", "No scale array"]
         g.ScaleFactor = 0.3  # a body is about 0.3 m wide
@@ -111,6 +127,14 @@ def show_run(run, png, when):
         line += f"; {n} pedestrians"
     view.ViewSize = [1000, 600]
     ResetCamera(view)
+    if building:  # from the front and above, a little from the side
+        cam = view.GetActiveCamera()
+        cam.Elevation(-62.0)
+        cam.Azimuth(-25.0)
+        cam.OrthogonalizeViewUp()
+        ResetCamera(view)
+        line += (f"; a building of height {bounds[5] - bounds[4]:g} m, seen from the front "
+                 f"(heights x {Z_STRETCH:g})")
     Render(view)
     SaveScreenshot(png, view)
     print(line)

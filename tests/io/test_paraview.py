@@ -75,3 +75,32 @@ def test_paraview_shows_the_mesh_exits(geometries_dir, tmp_path):
 def test_paraview_check_names_a_missing_run(tmp_path):
     r = _pvbatch(str(tmp_path / "nothing"), str(tmp_path / "x.png"))
     assert r.returncode == 2 and "no density.pvd" in r.stderr
+
+
+def test_paraview_renders_every_level_of_a_building(tmp_path):
+    """Issue 45: a building's run is shown in 3-D with every level, not the top floor from
+    above (which looked blank)."""
+    import json
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from building_data import TWO
+
+    room = tmp_path / "two.json"
+    room.write_text(json.dumps({"format": "pedmesh-room", "version": 1, "units": "m", **TWO}))
+    run = tmp_path / "run"
+    assert main(["run", str(room), "--out", str(run), "-q", "--t-end", "12"]) == 0
+    png = tmp_path / "view.png"
+    r = _pvbatch(str(run), str(png), "--time", "6")
+    assert r.returncode == 0, r.stderr
+    line = r.stdout.strip().splitlines()[-1]
+    assert "a building of height 3 m" in line and "pedestrians" in line
+    img = _picture_has_content(png)[..., :3]
+    # the geometry (not the background, left of the colour bars) spans both floors: much
+    # of the picture's height, where a top view of the upper floor covered a band
+    body = img[:, : int(0.8 * img.shape[1])]
+    background = np.median(body.reshape(-1, 3), axis=0)
+    rows = np.flatnonzero((np.abs(body - background).sum(axis=2) > 0.1).any(axis=1))
+    assert rows.max() - rows.min() > 0.5 * img.shape[0]
