@@ -103,7 +103,7 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise PedmeshError(f"{run_dir}: no such run folder")
-    from .run.output import check_writable, write_error
+    from .run.output import check_writable, temporary_beside, write_error
 
     check_writable(out)  # (before the minutes of drawing)
     frames = _Frames(run_dir)
@@ -158,7 +158,11 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
 
     anim = animation.FuncAnimation(fig, draw, frames=[int(k) for k in pick], blit=False)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.stem + ".part" + suffix)
+    try:
+        tmp = temporary_beside(out)  # (a name of its own: never a file of the user's)
+    except OSError as exc:
+        plt.close(fig)
+        raise write_error(out, exc) from None
     try:
         if suffix == ".mp4":
             import imageio_ffmpeg

@@ -1689,19 +1689,21 @@ def write_report(folders: Sequence[str | Path], out: str | Path, *,
                  frames: int = DEFAULT_FRAMES, title: str | None = None) -> Path:
     """Write the report of ``folders`` (run, compare or ensemble folders) to the HTML file
     ``out`` and return its path (see :func:`build_report`)."""
-    from .run.output import check_writable, write_error
+    from .run.output import check_writable, temporary_beside, write_error
 
     out = Path(out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise ReportError(f"{out}: the report is an HTML page; use a .html suffix")
     check_writable(out)  # (before the minutes of reading and drawing)
     text = build_report(folders, frames=frames, title=title)
-    tmp = out.with_name(out.name + ".part")
+    tmp = None
     try:
+        tmp = temporary_beside(out)
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, out)
     except OSError as exc:
-        tmp.unlink(missing_ok=True)
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
         raise write_error(out, exc) from None
     return out
 

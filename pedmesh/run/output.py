@@ -78,7 +78,7 @@ __all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "BrokenSummaryError",
            "OutputWriteError", "evacuation_times", "evacuation_times_from_curve",
            "file_sha256", "run_status", "read_summary", "load_summary", "summary_problem",
            "RUN_FILES", "TEMP_FILES", "STATUSES", "RESERVE_BYTES", "check_writable",
-           "write_error"]
+           "write_error", "temporary_beside"]
 
 #: pedmesh's own temporary files in a run folder (exact names); the frames' temporary
 #: files (``density_000012.part.vtu``) are inside ``density/`` and ``pedestrians/``
@@ -148,21 +148,32 @@ def _write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteErro
 
 def check_writable(path: str | os.PathLike) -> None:
     """Make sure the file ``path`` can be written before the work that produces it (a
-    report, an animation): its folder is made if missing, and a probe next to it
-    (``path.part``) created and removed. :class:`OutputWriteError` naming ``path`` if not."""
+    report, an animation): its folder is made if missing, and a probe next to it (a new
+    temporary file, :func:`temporary_beside`) created and removed.
+    :class:`OutputWriteError` naming ``path`` if not."""
     path = Path(path)
-    probe = path.with_name(path.name + ".part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        if path.is_dir():
+            raise IsADirectoryError(errno.EISDIR, os.strerror(errno.EISDIR), str(path))
         if path.exists() and not os.access(path, os.W_OK):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
-        with open(probe, "xb"):
-            pass
-    except FileExistsError:  # a probe left by another pedmesh: this one is not ours
-        return
+        temporary_beside(path).unlink()
     except OSError as exc:
         raise OutputWriteError(exc.errno, exc.strerror or str(exc), str(path)) from None
-    probe.unlink(missing_ok=True)
+
+
+def temporary_beside(path: str | os.PathLike) -> Path:
+    """A new, empty file next to ``path`` with a name of its own (``.NAME.XXXXXX.part``
+    plus ``path``'s suffix), to write ``path`` into and rename: never a file of the
+    user's (``NAME.part`` may be theirs)."""
+    import tempfile
+
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.",
+                               suffix=".part" + path.suffix)
+    os.close(fd)
+    return Path(tmp)
 
 
 def write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteError:
