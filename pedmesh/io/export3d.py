@@ -180,10 +180,18 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
     else:
         merged = trimesh.util.concatenate(list(scene.dump()))
         data = merged.export(file_type=suffix[1:])
-    tmp = p.with_name(p.name + ".part")
-    with open(tmp, "wb") as f:
-        f.write(data if isinstance(data, bytes) else data.encode("utf-8"))
-    tmp.replace(p)
+    from ..run.output import temporary_beside, write_error
+
+    tmp = None
+    try:
+        tmp = temporary_beside(p)  # (a name of its own: never a file of the user's)
+        with open(tmp, "wb") as f:
+            f.write(data if isinstance(data, bytes) else data.encode("utf-8"))
+        tmp.replace(p)
+    except OSError as exc:
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+        raise write_error(p, exc) from None
     return p
 
 
