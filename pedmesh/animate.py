@@ -1,7 +1,7 @@
 """An animation of a run: the density field (continuum models) or the crowd (particle
-models) over the room, with a clock, as MP4 or GIF (``pedmesh animate``). A building's
-levels and stairs are drawn side by side, each in its own plane (its atlas,
-:mod:`pedmesh.run.layout`).
+models) over the room, with a clock, as MP4 or GIF (``pedmesh animate``). A building is
+drawn as plans, one panel per level, each stair where it is
+(:mod:`pedmesh.run.layout`).
 
 The frames are the run's own output frames (``density.pvd``, ``pedestrians.pvd``, one per
 output interval). MP4 is written with the ffmpeg binary of the ``imageio-ffmpeg`` wheel
@@ -42,11 +42,21 @@ class _Frames:
             raise PedmeshError(f"{pvd}: no frames")
         peds = run_dir / "pedestrians.pvd"
         self.pedestrians = dict(read_pvd_index(peds)) if peds.is_file() else {}
-        self.layout = None  # a building's atlas (its floors side by side), else the plan
+        self.layout = None  # a building's plans (one panel per level), else the plan
         self.note = ""
+        from .io.vtk import frame_intact
+
+        for _, f in self.density:  # (every frame whole, not only those shown)
+            if not frame_intact(f):
+                read_vtu(f)  # (raises, naming the file and what is wrong)
+        for f in self.pedestrians.values():
+            if not frame_intact(f):
+                raise PedmeshError(f"{f}: missing or cut short (pedestrians.pvd lists it); "
+                                   "rerun the run, or remove the frame's line from its .pvd")
         first = read_vtu(self.density[0][1])
         self._read = {0: first}  # (the first frame, read once: field(0) takes it)
         pts, tri, _, _ = first
+        self._mesh = (len(pts), np.asarray(tri))
         if np.ptp(np.asarray(pts)[:, 2]) > 0:  # a building with floors above each other
             from .run.layout import building_layout
 
@@ -57,11 +67,19 @@ class _Frames:
         from .io.vtk import read_vtu
 
         got = self._read.pop(k, None)
-        pts, tri, pd, cd = got if got is not None else read_vtu(self.density[k][1])
+        path = self.density[k][1]
+        pts, tri, pd, cd = got if got is not None else read_vtu(path)
+        if len(pts) != self._mesh[0] or not np.array_equal(tri, self._mesh[1]):
+            raise PedmeshError(f"{path}: a frame of another mesh ({len(pts)} points, "
+                               f"{len(tri)} triangles; the run's first frame has "
+                               f"{self._mesh[0]} and {len(self._mesh[1])}, other triangles)")
         if "rho" in cd:
             rho = np.asarray(cd["rho"], float)
-        else:  # the social force model's kernel density at the vertices
+        elif "density" in pd:  # the social force model's kernel density at the vertices
             rho = np.asarray(pd["density"], float)[tri].mean(axis=1)
+        else:
+            raise PedmeshError(f"{path}: no density field ('rho' or 'density'): not a "
+                               "density frame of a pedmesh run")
         if self.layout is not None:
             return self.layout.points, self.layout.triangles, rho
         return np.asarray(pts)[:, :2], np.asarray(tri), rho
@@ -96,7 +114,10 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
     if suffix not in FORMATS:
         raise PedmeshError(f"{out}: the animation is written as {' or '.join(FORMATS)}; "
                            "use one of those suffixes")
-    if not (np.isfinite(fps) and 0.1 <= fps <= 120):
+    import numbers
+
+    if isinstance(fps, bool) or not isinstance(fps, numbers.Real) or not (
+            np.isfinite(fps) and 0.1 <= fps <= 120):
         raise PedmeshError(f"--fps must be between 0.1 and 120 frames per second, got {fps!r}")
     if not (isinstance(max_frames, int) and max_frames >= 1):
         raise PedmeshError(f"--max-frames must be a positive whole number, got {max_frames!r}")
@@ -144,7 +165,16 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
     n0 = float(s.get("n_initial") or 0)
     t_ev, n_ev = frames.result.evacuation
 
+    failed: list[PedmeshError] = []  # (matplotlib's writers hide an error in a frame)
+
     def draw(k: int):
+        try:
+            return drawn(k)
+        except PedmeshError as exc:
+            failed.append(exc)
+            raise
+
+    def drawn(k: int):
         t = frames.density[k][0]
         _, _, r = frames.field(k)
         mesh.set_array(r)
@@ -174,11 +204,12 @@ def animate_run(run_dir: str | Path, out: str | Path, *, fps: float = 10.0,
             writer = animation.PillowWriter(fps=fps)
         anim.save(tmp, writer=writer, dpi=dpi)
         tmp.replace(out)
-    except OSError as exc:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
-        raise write_error(out, exc) from None
-    except BaseException:
-        tmp.unlink(missing_ok=True)
+        if failed:  # a frame that could not be read, not the video
+            raise failed[0] from None
+        if isinstance(exc, OSError) and not isinstance(exc, PedmeshError):
+            raise write_error(out, exc) from None
         raise
     finally:
         plt.close(fig)

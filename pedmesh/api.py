@@ -76,6 +76,8 @@ def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
     if out_dir is not None and not isinstance(out_dir, (str, PathLike)):
         raise ParameterError(f"out_dir must be a folder's path (str or pathlib.Path), got "
                              f"{type(out_dir).__name__} {out_dir!r:.40}")
+    if out_dir is not None and "\x00" in str(out_dir):
+        raise ParameterError(f"out_dir must not hold a NUL character, got {str(out_dir)!r:.60}")
     if quiet not in (True, False):
         raise ParameterError(f"quiet must be True or False, got {quiet!r:.40}")
 

@@ -90,11 +90,11 @@ class ComparisonResult:
 
 
 def _density_or_none(res: RunResult, t: float, mesh):
-    """Cell densities of a run's frame at time ``t`` [s], or None where it has none."""
-    try:
-        return res.density_at(t, mesh)[1]
-    except Exception:  # a run that ended before t has no frame there
+    """Cell densities of a run's frame nearest time ``t`` [s], or None if it saved none (a
+    broken frame is an error naming it)."""
+    if not res.density_frames:
         return None
+    return res.density_at(t, mesh)[1]
 
 
 def _outflow_total(res: RunResult, kernel: bool = False, window: float = 2.0):
@@ -151,6 +151,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
     preset = resolve_preset(preset, room)
 
     out = Path(out_dir)
+    _check_compare_folder(out, [s.label for s in specs])
     out.mkdir(parents=True, exist_ok=True)
     mesh_options = dict(mesh_options or {})
     runs: dict[str, RunResult] = {}
@@ -217,6 +218,41 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
     _write_stairs(out, runs)
     diagrams = _plots(out, room, mesh, runs, n0, density_times) if plots else {}
     return ComparisonResult(runs, rows, out, diagrams)
+
+
+#: the files a comparison writes into its folder (beside one run folder per model)
+COMPARE_FILES = ("comparison.csv", "comparison.md", "stairs.csv", "evacuation.png",
+                 "outflow.png", "fundamental.png", "density.png")
+
+
+def _check_compare_folder(out: Path, labels: list[str]) -> None:
+    """A one-line error unless ``out`` is new, empty or a comparison's folder: every entry
+    a file a comparison writes or a pedmesh run folder (its summary.json), so that a user's
+    files are never written over."""
+    from .run.output import RunFolderError
+
+    from .run.output import read_summary
+
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise RunFolderError(f"{out}: not a folder; choose another --out")
+    entries = sorted(out.iterdir(), key=lambda p: p.name)
+    runs = [e for e in entries if e.is_dir() and read_summary(e)[0] is not None]
+    try:
+        with open(out / "comparison.csv", encoding="utf-8") as f:
+            ours = f.readline().startswith("label,model,")
+    except (OSError, UnicodeDecodeError):
+        ours = False
+    for e in entries:
+        if e.name.startswith(".") or e in runs or (e.is_dir() and e.name in labels
+                                                   and not any(e.iterdir())):
+            continue
+        if e.name in COMPARE_FILES and (ours or runs):
+            continue
+        raise RunFolderError(f"{out}: not empty and not a pedmesh comparison folder (it holds "
+                             f"'{e.name}'); choose another --out (pedmesh does not write into "
+                             "other files)")
 
 
 def _fmt(v, digits=2):

@@ -539,6 +539,15 @@ def _checked_sweep(sweep: Mapping[str, Sequence[Any]] | None,
                    overrides: Mapping[str, Any] | None) -> tuple[dict[str, list], dict]:
     """The sweep and the fixed overrides as plain dicts; EnsembleError if a swept parameter
     has no values or is also set."""
+    if sweep is not None and not isinstance(sweep, Mapping):
+        raise EnsembleError(f"sweep must map parameter names to lists of values, e.g. "
+                            f"{{'U_f': [1.2, 1.34]}}; got {type(sweep).__name__} {sweep!r:.40}")
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise EnsembleError(f"overrides must map parameter names to values, got "
+                            f"{type(overrides).__name__} {overrides!r:.40}")
+    for k, v in (sweep or {}).items():
+        if isinstance(v, (str, bytes)) or not isinstance(v, (Sequence, np.ndarray)):
+            raise EnsembleError(f"sweep of '{k}' must be a list of values, got {v!r:.40}")
     sweep = {k: list(v) for k, v in (sweep or {}).items()}
     for k, v in sweep.items():
         if not v:

@@ -155,8 +155,11 @@ def _table(header: Sequence[str], rows: Iterable[Sequence[Any]], cls: str = "") 
 
 
 def _read_csv_rows(path: Path) -> list[dict[str, str]]:
-    with open(path, newline="", encoding="utf-8") as f:
-        return list(csv.DictReader(f))
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            return list(csv.DictReader(f))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise ReportError(f"{path}: not a CSV table of pedmesh's ({exc})") from None
 
 
 def _float_or_none(text: Any) -> float | None:
@@ -231,6 +234,7 @@ class _Run:
         self.notes: list[str] = []  # what the report itself found (room file, frames)
         #: a building's layout (:mod:`pedmesh.run.layout`), set when its frames are read
         self.layout = None
+        self.exit_passages  # (exits.csv read now: a broken one stops the report, named)
 
     @property
     def s(self) -> dict:
@@ -326,7 +330,7 @@ class _Run:
         fr = _Frames.read(self.path)
         if fr is None:
             self.notes.append("no density frames were saved (density.pvd missing or empty)")
-        elif fr.z_span > 0:  # a building: its levels and stairs side by side (the atlas)
+        elif fr.z_span > 0:  # a building: one panel per level (pedmesh.run.layout)
             from .run.layout import building_layout
 
             self.layout, note = building_layout(self.summary, self.path, len(fr.triangles))
@@ -407,6 +411,7 @@ class _Frames:
     points: np.ndarray
     triangles: np.ndarray
     z_span: float = 0.0  # [m] the height range of the frames' points (0: one plane)
+    _n_points: int = 0  # the first frame's points
     layout: Any = None  # a building's layout (its atlas), where points are drawn
     #: the frames' own triangles (their point data's), where ``triangles`` are the layout's
     frame_triangles: np.ndarray | None = None
@@ -416,21 +421,36 @@ class _Frames:
     def read(cls, run_dir: Path) -> "_Frames | None":
         """The frames of ``run_dir``; None if the run saved none; :class:`ReportError`
         naming the file if its index or first frame cannot be read."""
-        from .io.vtk import read_pvd_index, read_vtu
+        from .io.vtk import frame_intact, read_pvd_index, read_vtu
 
         p = run_dir / "density.pvd"
+        saved = sorted((run_dir / "density").glob("density_*.vtu")) \
+            if (run_dir / "density").is_dir() else []
         if not p.exists():
+            if saved:
+                raise ReportError(f"{p}: missing, though density/ holds {len(saved)} frames "
+                                  "(the index of the frames is lost: rerun the run)")
             return None
         try:
             index = read_pvd_index(p)
             if not index:
+                if saved:
+                    raise ReportError(f"{p}: lists no frames, though density/ holds "
+                                      f"{len(saved)} (rerun the run)")
                 return None
+            for _, f in index:  # (every frame whole, not only those the report shows)
+                if not frame_intact(f):
+                    read_vtu(f)  # (raises, naming the file and what is wrong)
             pts, tri, pd, cd = read_vtu(index[0][1])
         except PedmeshError as exc:
             raise ReportError(str(exc)) from None
         self = cls(np.array([t for t, _ in index], float), [f for _, f in index],
                    np.asarray(pts)[:, :2].copy(), tri, float(np.ptp(np.asarray(pts)[:, 2])))
+        self._n_points = len(pts)
         self._cache[0] = _cell_density(pd, cd, tri)
+        if self._cache[0] is None:
+            raise ReportError(f"{index[0][1]}: no density field ('rho' or 'density'): not a "
+                              "density frame of a pedmesh run")
         return self
 
     @cached_property
@@ -451,14 +471,18 @@ class _Frames:
         from .io.vtk import read_vtu
 
         try:
-            _, _, pd, cd = read_vtu(self.paths[k])
+            pts, tri, pd, cd = read_vtu(self.paths[k])
         except PedmeshError as exc:
             raise ReportError(str(exc)) from None
-        rho = _cell_density(pd, cd, self.triangles if self.frame_triangles is None
-                            else self.frame_triangles)
-        if rho is not None and len(rho) != len(self.triangles):
-            raise ReportError(f"{self.paths[k]}: {len(rho)} cells, the run's first frame "
-                              f"{len(self.triangles)}")
+        own = self.triangles if self.frame_triangles is None else self.frame_triangles
+        if len(pts) != self._n_points or not np.array_equal(tri, own):
+            raise ReportError(f"{self.paths[k]}: a frame of another mesh ({len(pts)} points, "
+                              f"{len(tri)} triangles; the run's first frame has "
+                              f"{self._n_points} and {len(own)}, other triangles)")
+        rho = _cell_density(pd, cd, own)
+        if rho is None:
+            raise ReportError(f"{self.paths[k]}: no density field ('rho' or 'density'): not "
+                              "a density frame of a pedmesh run")
         if len(self._cache) < 4096:
             self._cache[k] = rho
         return rho
@@ -490,12 +514,29 @@ def _cell_density(pd: Mapping, cd: Mapping, tri: np.ndarray) -> np.ndarray | Non
     return None
 
 
+def _ensemble_meta_problem(meta: Any) -> str | None:
+    """What is wrong with ``meta`` as ensemble.json (None if nothing the report reads)."""
+    if not isinstance(meta, dict):
+        return "not a JSON object"
+    if meta.get("sweep") is not None and not isinstance(meta["sweep"], dict):
+        return "'sweep' is not an object"
+    points = meta.get("points")
+    if points is not None and not (isinstance(points, list)
+                                   and all(isinstance(p, dict) for p in points)):
+        return "'points' is not a list of objects"
+    return None
+
+
 class _Ensemble:
     """An ensemble folder: its members' table, the percentiles, the members' runs."""
 
     def __init__(self, path: Path) -> None:
         self.path = Path(path)
         self.rows = _read_csv_rows(self.path / "ensemble.csv")
+        need = {"member", "point", "status"}
+        if self.rows and not need <= set(self.rows[0]):
+            raise ReportError(f"{self.path / 'ensemble.csv'}: not pedmesh's members table "
+                              f"(no column '{sorted(need - set(self.rows[0]))[0]}')")
         self.meta: dict = {}
         jp = self.path / "ensemble.json"
         if jp.exists():
@@ -503,6 +544,9 @@ class _Ensemble:
                 self.meta = json.loads(jp.read_text(encoding="utf-8"))
             except (OSError, ValueError):
                 self.meta = {}
+            problem = _ensemble_meta_problem(self.meta)
+            if problem:
+                raise ReportError(f"{jp}: not pedmesh's ensemble record ({problem})")
         self.sweep = list((self.meta.get("sweep") or {}).keys())
         if not self.sweep and self.rows:
             cols = list(self.rows[0])
@@ -1512,9 +1556,10 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
     section("plan", "Room plan", figs
             + "<p>Walls in black, exits in green (named), obstacles grey, the start areas "
             "blue with their people, measurement areas and lines purple.</p>"
-            + ("<p>A building: its levels and stairs side by side, each in its own plane "
-               "(stacked floors apart, a stair unrolled to its true length), the stair edges "
-               "dashed; the maps below are drawn the same way.</p>" if building else ""))
+            + ("<p>A building: one panel per level, in its own plan (stacked floors apart); "
+               "each stair where it is, dashed, on both levels it joins, labelled with the "
+               "level it leads to (its cells drawn on its bottom level's panel); the maps "
+               "below are drawn the same way.</p>" if building else ""))
     section("evacuation", "Evacuation", _img(_evac_figure(runs),
                                              "evacuation curve: people out against time"))
     flow = _flow_figure(runs)

@@ -59,11 +59,16 @@ def run(args: argparse.Namespace) -> int:
 
     specs = parse_model_specs(args.models)
     times = None
-    if args.times:
+    if args.times is not None:
+        import math
+
         try:
             times = [float(x) for x in args.times.split(",") if x.strip()]
         except ValueError:
             raise ParameterError(f"--times expects numbers, got '{args.times}'") from None
+        if not times or not all(math.isfinite(t) and t >= 0 for t in times):
+            raise ParameterError(f"--times expects finite times >= 0 [s], separated by "
+                                 f"commas, got '{args.times}'")
     from ..run.driver import check_crowd
 
     room, mesh = mesh_from_args(args, buildings=True,

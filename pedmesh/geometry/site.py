@@ -69,6 +69,8 @@ def mesh_site(site: Site, **options: Any):
     if bad:
         raise ParameterError(f"unknown mesh option '{bad[0]}' (options: "
                              f"{', '.join(MESH_OPTIONS)})")
+    for k, v in options.items():
+        _check_option(k, v)
     opts = {k: v for k, v in options.items() if v is not None or k in ("feature_area",
                                                                       "max_cells")}
     if is_building(site):
@@ -79,6 +81,24 @@ def mesh_site(site: Site, **options: Any):
         return triangulate_building(site, **{k: v for k, v in opts.items()
                                              if k not in _ROOM_ONLY})
     return triangulate(site, **opts)
+
+
+def _check_option(key: str, value: Any) -> None:
+    """A one-line error for a mesh option's value of the wrong kind (its range is the
+    mesher's to check)."""
+    import numbers
+
+    if value is None:
+        return
+    if key == "size":
+        if not callable(value):
+            raise ParameterError(f"mesh option 'size' must be a function of the points "
+                                 f"(an (n, 2) array [m]) giving edge lengths [m], got "
+                                 f"{type(value).__name__}")
+        return
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"mesh option '{key}' must be a number, got "
+                             f"{type(value).__name__} {value!r:.40}")
 
 
 def check_mesh_size(site: Site, mesh_options: dict, max_cells: float | None) -> None:

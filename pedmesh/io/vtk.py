@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import PedmeshError
 
-__all__ = ["FrameReadError", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
+__all__ = ["FrameReadError", "frame_intact", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
            "read_pvd_index", "read_vtu", "read_vtp"]
 
 ArrayMap = Mapping[str, np.ndarray] | None
@@ -355,6 +355,8 @@ def _read_xml(reader_class, path):
     path = Path(path)
     if not path.is_file():
         raise FrameReadError(f"{path}: missing (the run's index lists it)")
+    if not frame_intact(path):
+        raise FrameReadError(_unreadable(path))
     errors: list[str] = []
     r = reader_class()
     r.AddObserver(vtkCommand.ErrorEvent, lambda obj, ev: errors.append(ev))
@@ -370,6 +372,19 @@ def _read_xml(reader_class, path):
     if not ok or g is None:
         raise FrameReadError(_unreadable(path))
     return g
+
+
+def frame_intact(path: str | Path) -> bool:
+    """Whether the VTK XML file ``path`` is there and complete (it ends with its closing
+    ``</VTKFile>``: a file cut short or of another kind does not); reads its last bytes
+    only."""
+    try:
+        with open(path, "rb") as f:
+            f.seek(0, os.SEEK_END)
+            f.seek(max(0, f.tell() - 256))
+            return b"</VTKFile>" in f.read()
+    except OSError:
+        return False
 
 
 def _unreadable(path: Path) -> str:
@@ -422,7 +437,7 @@ def read_vtu(path: str | Path, *, point_arrays=None, cell_arrays=None):
     conn = vtk_to_numpy(cells.GetConnectivityArray())
     offsets = vtk_to_numpy(cells.GetOffsetsArray())
     if len(offsets) > 1 and not np.all(np.diff(offsets) == 3):
-        raise ValueError(f"{path}: not a mesh of triangles only")
+        raise FrameReadError(f"{path}: not a mesh of triangles only (not a pedmesh frame)")
     tri = conn.reshape(-1, 3).astype(np.int64)
     return (pts, tri, _arrays(g.GetPointData(), point_arrays),
             _arrays(g.GetCellData(), cell_arrays))
@@ -436,5 +451,7 @@ def read_vtp(path: str | Path, *, arrays=None):
 
     g = _read_xml(vtkXMLPolyDataReader, path)
     p = g.GetPoints()
-    pts = vtk_to_numpy(p.GetData()).copy() if p is not None else np.zeros((0, 3))
+    if p is None:  # (an empty frame has its points, none of them)
+        raise FrameReadError(_unreadable(path))
+    pts = vtk_to_numpy(p.GetData()).copy()
     return pts, _arrays(g.GetPointData(), arrays)

@@ -160,6 +160,15 @@ def check_room_mesh(room, mesh) -> None:
     ``room``: the room's fingerprint (:func:`pedmesh.mesh.triangle_mesh.room_fingerprint`)
     must be the one kept in the mesh; a mesh made without a room must have the room's
     exits and walkable area."""
+    from ..geometry.site import is_building
+    from ..mesh import SurfaceMesh
+
+    if room is not None and is_building(room) != isinstance(mesh, SurfaceMesh):
+        what = "a building's surface mesh" if isinstance(mesh, SurfaceMesh) else "a room's mesh"
+        raise ParameterError(f"the mesh given is {what}, not a mesh of "
+                             f"{'building' if is_building(room) else 'room'} '{room.name}'; "
+                             "leave out mesh= (pedmesh meshes it), or mesh it with "
+                             "pedmesh.geometry.site.mesh_site")
     if room is None or not hasattr(room, "boundary_rings"):
         return
     from ..mesh.triangle_mesh import room_fingerprint

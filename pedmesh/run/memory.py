@@ -114,7 +114,7 @@ TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float)
                              ("y", float)])
 #: a building's rows: also the height z [m] and the level or stair (its name)
 BUILDING_TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float),
-                                      ("y", float), ("z", float), ("place", "U64")])
+                                      ("y", float), ("z", float), ("place", object)])
 
 
 @dataclass

@@ -182,6 +182,14 @@ def write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteError
     return _write_error(path, exc)
 
 
+def _one_word(name: str) -> str:
+    """``name`` as one whitespace-free column of trajectories.txt: whitespace, control
+    characters and '%' percent-encoded (``urllib.parse.unquote`` gives the name back);
+    other characters, Unicode included, as they are."""
+    return "".join("".join(f"%{b:02X}" for b in c.encode("utf-8"))
+                   if (c.isspace() or c == "%" or not c.isprintable()) else c for c in name)
+
+
 def file_sha256(path: str | Path) -> str:
     """Hex SHA-256 of a file's bytes (the room file a run was made from)."""
     h = hashlib.sha256()
@@ -230,6 +238,17 @@ _SUMMARY_FIELDS: dict[str, str] = {
     "t_end": _NUMBER, "t_stop": _NUMBER, "n_initial": _NUMBER, "n_evacuated": _NUMBER,
     "t_evac_50": _NUMBER, "t_evac_90": _NUMBER, "t_evac_100": _NUMBER, "steps": _NUMBER,
     "frames": _NUMBER, "wall_time_s": _NUMBER, "dt": _NUMBER,
+    "geometry": "text", "room": "text", "warnings": "a list", "safety": "an object",
+    "stairs": "an object",
+}
+#: the fields of the summary's objects that pedmesh reads, and what each must be
+_NESTED_FIELDS: dict[str, dict[str, str]] = {
+    "settings": {"overrides": "an object", "mesh_options": "an object",
+                 "model_options": "an object", "preset": "text", "room_sha256": "text"},
+    "safety": {"peak_density": "an object", "area_time_above": "an object",
+               "time_above": "an object", "level_of_service": "an object",
+               "crowd_pressure": "an object", "exits": "an object",
+               "clear_times": "an object", "levels": "an object", "error": "text"},
 }
 _REQUIRED = ("pedmesh_version", "model", "status")
 
@@ -239,6 +258,8 @@ def _is_kind(value: Any, kind: str) -> bool:
         return isinstance(value, str)
     if kind == "an object":
         return isinstance(value, dict)
+    if kind == "a list":
+        return isinstance(value, list)
     if isinstance(value, bool):
         return False
     if kind == "a whole number":
@@ -266,6 +287,15 @@ def summary_problem(data: Any) -> str | None:
             continue
         if not _is_kind(value, kind):
             return f"'{key}' is {_json_kind(value)}, not {kind}"
+    for key, fields in _NESTED_FIELDS.items():
+        inner = data.get(key)
+        for sub, kind in fields.items() if isinstance(inner, dict) else ():
+            value = inner.get(sub)
+            if value is not None and not _is_kind(value, kind):
+                return f"'{key}'.'{sub}' is {_json_kind(value)}, not {kind}"
+    if isinstance(data.get("warnings"), list) and not all(
+            isinstance(w, str) for w in data["warnings"]):
+        return "'warnings' holds something that is not text"
     if data["status"] not in STATUSES:
         return f"unknown status {data['status']!r}"
     return None
@@ -322,7 +352,7 @@ def _lock_is_held(d: Path) -> bool | None:
 def _pid_alive(pid: Any) -> bool:
     try:
         os.kill(int(pid), 0)
-    except (OSError, TypeError, ValueError):
+    except (OSError, TypeError, ValueError, OverflowError):
         return False
     return True
 
@@ -458,7 +488,13 @@ class RunWriter:
     def __init__(self, out_dir: str | Path, header: Mapping[str, Any], *,
                  exit_names: Sequence[str] = ()) -> None:
         self.dir = Path(out_dir)
-        self._lock = claim_run_dir(self.dir)
+        try:
+            self._lock = claim_run_dir(self.dir)
+        except PedmeshError:
+            raise
+        except OSError as exc:  # (a folder that cannot be made or written: named)
+            raise OutputWriteError(exc.errno, exc.strerror or str(exc),
+                                   str(exc.filename or self.dir)) from None
         self._reserve()
         self.header = dict(header)
         self.header.setdefault("pedmesh_version", __version__)
@@ -623,7 +659,8 @@ class RunWriter:
                 f"# pedmesh {__version__}: {description}\n"
                 f"# framerate: {frame_rate:g} fps (frame k is at t = k / framerate s)\n"
                 + ("# unit: x/m, y/m, z/m (plan coordinates and height in metres; place: "
-                   "the level or stair)\n# id frame x y z place\n" if building else
+                   "the level or stair, a space, tab, newline or % written %XX)\n"
+                   "# id frame x y z place\n" if building else
                    "# unit: x/m, y/m (coordinates in metres)\n# id frame x y\n"))
             sql_path = self.dir / "trajectories.sqlite"
             try:
@@ -632,7 +669,8 @@ class RunWriter:
                 raise _write_error(sql_path, exc) from None
         if building:
             z = np.asarray(z, float).reshape(-1)
-            lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f} {h:.4f} {w}\n"
+            names = {w: _one_word(w) for w in set(place)}
+            lines = "".join(f"{int(i)} {frame} {p[0]:.4f} {p[1]:.4f} {h:.4f} {names[w]}\n"
                             for i, p, h, w in zip(ids, points, z, place))
         else:  # compiled, the same bytes as Python's f"{x:.4f}" (None: left to Python)
             lines = format_rows(ids, frame, points)

@@ -19,15 +19,17 @@ __all__ = ["RunResult", "FINISHED_STATUSES"]
 FINISHED_STATUSES = ("finished", "stopped at t_end")
 
 
-def _check_frame_mesh(path: Path, frame, mesh) -> None:
-    """A one-line error unless ``mesh`` is the mesh of the frame read from ``path``."""
+def _check_frame_mesh(path: Path, frame_points: np.ndarray, frame_tri: np.ndarray,
+                      mesh) -> None:
+    """A one-line error unless ``mesh`` is the mesh of the frame read from ``path`` (its
+    points (n, 3) [m] and triangles)."""
     pts = np.asarray(getattr(mesh, "points", np.zeros((0, 2))))
     n_tri = getattr(mesh, "n_triangles", None)
     why = None
-    if frame.n_cells != n_tri or frame.n_points != len(pts):
-        why = (f"the run's mesh has {frame.n_points} vertices and {frame.n_cells} triangles, "
-               f"the mesh given {len(pts)} and {n_tri}")
-    elif pts.ndim != 2 or not np.allclose(np.asarray(frame.points)[:, :pts.shape[1]], pts,
+    if len(frame_tri) != n_tri or len(frame_points) != len(pts):
+        why = (f"the run's mesh has {len(frame_points)} vertices and {len(frame_tri)} "
+               f"triangles, the mesh given {len(pts)} and {n_tri}")
+    elif pts.ndim != 2 or not np.allclose(np.asarray(frame_points)[:, :pts.shape[1]], pts,
                                           rtol=0.0, atol=1e-9):
         why = "the vertices of the mesh given are not the run's"
     if why:
@@ -114,21 +116,25 @@ class RunResult:
         to ``t``. Vertex fields (particle models) are averaged to the cells. ``mesh``: the
         mesh the run was made on; another mesh is refused (its vertices or triangles differ
         from the frame's)."""
-        import pyvista as pv
+        from ..io.vtk import read_vtu
 
         frames = self.density_frames
         if not frames:
             raise PedmeshError(f"{self.path}: no density frames")
         k = int(np.argmin([abs(ft - t) for ft, _ in frames]))
         ft, f = frames[k]
-        m = pv.read(f)
-        _check_frame_mesh(f, m, mesh)
-        if "rho" in m.cell_data:
-            rho = np.asarray(m.cell_data["rho"])
-            vel = np.asarray(m.cell_data["velocity"])[:, :2]
-        else:
+        pts, ftri, pd, cd = read_vtu(f)  # (a broken frame: FrameReadError naming it)
+        _check_frame_mesh(f, pts, ftri, mesh)
+        if "rho" in cd:
+            rho = np.asarray(cd["rho"])
+            vel = np.asarray(cd["velocity"])[:, :2] if "velocity" in cd else \
+                np.zeros((len(rho), 2))
+        elif "density" in pd:
             tri = mesh.triangles
-            rho = np.asarray(m.point_data["density"])[tri].mean(axis=1)
-            v = m.point_data["velocity"] if "velocity" in m.point_data else None
+            rho = np.asarray(pd["density"])[tri].mean(axis=1)
+            v = pd.get("velocity")
             vel = np.zeros((len(tri), 2)) if v is None else np.asarray(v)[:, :2][tri].mean(axis=1)
+        else:
+            raise PedmeshError(f"{f}: no density field ('rho' or 'density'): not a density "
+                               "frame of a pedmesh run")
         return ft, rho, vel

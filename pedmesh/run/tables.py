@@ -1,6 +1,9 @@
 """Reading the CSV tables of a run folder (``evacuation.csv``, ``outflow.csv``,
 ``outflow_kernel.csv``, ``exits.csv``), the one way every reader does it.
 
+Rows are written whole, each with its newline, and flushed: a last line without its
+newline was cut short by a killed run and is left out.
+
 The tables are written with the csv module (:func:`pedmesh.run.output.RunWriter.append_rows`):
 a name with a comma, a quote or a newline is quoted, so a name is read back with the csv
 module too, never by splitting a line at its commas. A table that cannot be read raises
@@ -47,6 +50,8 @@ def read_number_table(path: str | Path, columns: int | None = None
     many as its header)."""
     path = Path(path)
     header, rows = read_rows(path)
+    if rows and not _ends_with_newline(path):
+        rows = rows[:-1]  # (a last line without its newline: cut short by a killed run)
     width = len(header)
     if columns is not None and width != columns:
         raise BrokenTableError(f"{path}: the header has {width} columns, expected {columns} "
@@ -65,6 +70,15 @@ def read_number_table(path: str | Path, columns: int | None = None
             raise BrokenTableError(f"{path}: line {k + 2} is not numbers: "
                                    f"{','.join(row)[:80]!r}") from None
     return header, data
+
+
+def _ends_with_newline(path: Path) -> bool:
+    with open(path, "rb") as f:
+        f.seek(0, 2)
+        if f.tell() == 0:
+            return True
+        f.seek(-1, 2)
+        return f.read(1) == b"\n"
 
 
 def crossings_from_rows(rows: Sequence[Sequence[str]], path: str | Path = "exits.csv"):

@@ -313,3 +313,212 @@ def test_a_users_part_file_beside_the_output_is_kept(small_run, tmp_path, comman
     assert all(p.read_text() == "the user's draft" for p in theirs)
     assert sorted(p.name for p in tmp_path.iterdir() if ".part" in p.name) == sorted(
         p.name for p in theirs)
+
+
+def test_level_names_with_spaces_and_newlines_keep_trajectories_whole(tmp_path):
+    import copy
+    import sys
+    from urllib.parse import unquote
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from building_data import TWO
+
+    b = copy.deepcopy(TWO)
+    name = 'G Tür "Ä",\nzwei 50%' + "x" * 90  # (and longer than 64 characters)
+    b["levels"][0]["name"] = name
+    for end in ("bottom", "top"):
+        if b["stairs"][0][end]["level"] == "ground":
+            b["stairs"][0][end]["level"] = name
+    room = tmp_path / "b.json"
+    room.write_text(json.dumps({"format": "pedmesh-room", "version": 1, "units": "m", **b}))
+    out = tmp_path / "run"
+    assert main(["run", str(room), "--out", str(out), "-q", "--t-end", "20"]) == 0
+    rows = [ln.split() for ln in (out / "trajectories.txt").read_text().splitlines()
+            if not ln.startswith("#")]
+    assert rows and all(len(r) == 6 for r in rows)
+    assert {unquote(r[5]) for r in rows} <= {name, "first", "stair"}
+    assert name in {unquote(r[5]) for r in rows}
+    mem = pedmesh.simulate(room, t_end=20.0)
+    assert name in set(mem.trajectories["place"])
+
+
+# ---------------------------------------------------------------- the sweep's re-run
+def _edit_summary(d: Path, **changes) -> None:
+    s = json.loads((d / "summary.json").read_text())
+    for k, v in changes.items():
+        if "." in k:
+            a, b = k.split(".")
+            s[a][b] = v
+        else:
+            s[k] = v
+    (d / "summary.json").write_text(json.dumps(s))
+
+
+@pytest.mark.parametrize("field, value", [
+    ("geometry", 5), ("warnings", 5), ("safety.peak_density", [1, 2]),
+    ("safety.time_above", [0, 0]), ("safety.level_of_service", "E"),
+    ("safety.exits", "east"), ("settings.overrides", [1, 2]), ("safety", "broken")])
+def test_report_names_a_summary_field_of_the_wrong_kind(small_run, tmp_path, capsys, field,
+                                                        value):
+    import shutil
+
+    d = tmp_path / "run"
+    shutil.copytree(small_run, d)
+    _edit_summary(d, **{field: value})
+    assert main(["report", str(d), "-o", str(tmp_path / "r.html")]) == 2
+    line = _one_line_error(capsys)
+    assert "summary.json" in line and field.split(".")[-1] in line
+
+
+def test_a_huge_process_id_reads_as_interrupted(small_run, tmp_path):
+    import shutil
+
+    d = tmp_path / "run"
+    shutil.copytree(small_run, d)
+    _edit_summary(d, status="running", pid=10 ** 30)
+    (d / ".lock").unlink(missing_ok=True)
+    assert RunResult.load(d).status == "interrupted"
+    assert main(["report", str(d), "-o", str(tmp_path / "r.html")]) == 0
+
+
+def _damage(small_run: Path, tmp_path: Path, how: str) -> tuple[Path, str]:
+    """A copy of the run, damaged; and a word the error must hold."""
+    import shutil
+
+    d = tmp_path / how
+    shutil.copytree(small_run, d)
+    frames = sorted((d / "density").glob("*.vtu"))
+    if how == "quad frame":
+        import meshio
+
+        meshio.write(frames[0], meshio.Mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0],
+                                                      [0, 1, 0.0]]), [("quad", [[0, 1, 2, 3]])]))
+        return d, frames[0].name
+    if how == "frame without density":
+        shutil.copy(d / "safety.vtu", frames[3])
+        return d, frames[3].name
+    if how == "frame of another mesh":
+        other = pedmesh.Room([(0, 0), (4, 0), (4, 4), (0, 4)],
+                             exits=[dict(name="e", polyline=[(4, 1), (4, 3)])])
+        from pedmesh.io import write_vtu
+
+        m = pedmesh.triangulate(other)
+        write_vtu(frames[3], m, point_data={"density": np.zeros(m.n_points)})
+        return d, frames[3].name
+    if how == "pedestrian frame deleted":
+        sorted((d / "pedestrians").glob("*.vtp"))[0].unlink()
+        return d, "pedestrians_000000.vtp"
+    if how == "pedestrian frames truncated":
+        for f in (d / "pedestrians").glob("*.vtp"):
+            f.write_bytes(f.read_bytes()[: f.stat().st_size // 2])
+        return d, "pedestrians_"
+    if how == "index deleted":
+        (d / "density.pvd").unlink()
+        return d, "density.pvd"
+    if how == "exits.csv binary":
+        (d / "exits.csv").write_bytes(b"\x00\xff" * 20)
+        return d, "exits.csv"
+    if how == "exits.csv short line":
+        with open(d / "exits.csv", "a") as f:
+            f.write("1,east\n")
+        return d, "exits.csv"
+    raise AssertionError(how)
+
+
+_FRAME_DAMAGE = ["quad frame", "frame without density", "frame of another mesh",
+                 "pedestrian frame deleted", "pedestrian frames truncated", "index deleted"]
+
+
+@pytest.mark.parametrize("command, how", [
+    *[("report", h) for h in _FRAME_DAMAGE + ["exits.csv binary", "exits.csv short line"]],
+    *[("animate", h) for h in _FRAME_DAMAGE]])  # (animate does not read exits.csv)
+def test_every_damage_is_named_by_report_and_animate(small_run, tmp_path, capfd, how,
+                                                      command):
+    d, word = _damage(small_run, tmp_path, how)
+    out = tmp_path / ("r.html" if command == "report" else "a.gif")
+    capfd.readouterr()
+    # (--frames 4 / --max-frames 4: the damage may be in a frame the output does not show)
+    args = [command, str(d), "-o", str(out)] + (["--frames", "4"] if command == "report"
+                                                 else ["--max-frames", "4"])
+    assert main(args) == 2
+    line = _one_line_error(capfd)
+    assert word in line and "cannot write" not in line
+
+
+def test_a_cut_last_line_of_evacuation_csv_is_left_out(small_run, tmp_path):
+    import shutil
+
+    d = tmp_path / "run"
+    shutil.copytree(small_run, d)
+    text = (d / "evacuation.csv").read_text()
+    whole = RunResult.load(d).evacuation
+    for cut in (2, 3):
+        (d / "evacuation.csv").write_text(text[:-cut])
+        t, n = RunResult.load(d).evacuation
+        assert len(t) == len(whole[0]) - 1 and np.array_equal(n, whole[1][:-1])
+
+
+@pytest.mark.parametrize("table", ["comparison.csv", "ensemble.csv"])
+def test_a_binary_table_of_a_compare_or_ensemble_folder_is_named(tmp_path, capsys, table):
+    d = tmp_path / "f"
+    d.mkdir()
+    (d / table).write_bytes(b"\x00\xff" * 50)
+    assert main(["report", str(d), "-o", str(tmp_path / "r.html")]) == 2
+    assert table in _one_line_error(capsys)
+
+
+@pytest.mark.parametrize("meta", [[1, 2], {"sweep": [1]}, {"points": "abc"}])
+def test_a_malformed_ensemble_record_is_named(tmp_path, capsys, meta):
+    d = tmp_path / "e"
+    d.mkdir()
+    (d / "ensemble.csv").write_text("member,point,seed,status\n000-0000,0,1,finished\n")
+    (d / "ensemble.json").write_text(json.dumps(meta))
+    assert main(["report", str(d), "-o", str(tmp_path / "r.html")]) == 2
+    assert "ensemble.json" in _one_line_error(capsys)
+
+
+@pytest.mark.parametrize("times", [",", "nan", "-1"])
+def test_compare_refuses_bad_density_times(tmp_path, capsys, times):
+    assert main(["compare", str(_room(tmp_path)), "--models", "sfm", "--times", times,
+                 "--out", str(tmp_path / "c"), "-q"]) == 2
+    assert "--times" in _one_line_error(capsys)
+
+
+def test_compare_does_not_write_into_a_users_folder(tmp_path, capsys):
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "comparison.md").write_text("MINE")
+    (d / "evacuation.png").write_text("PNG")
+    assert main(["compare", str(_room(tmp_path)), "--models", "sfm", "--out", str(d),
+                 "-q"]) == 2
+    assert "not a pedmesh comparison folder" in _one_line_error(capsys)
+    assert (d / "comparison.md").read_text() == "MINE"
+
+
+def test_density_at_names_a_broken_frame(small_run, tmp_path, capfd):
+    import shutil
+
+    d = tmp_path / "run"
+    shutil.copytree(small_run, d)
+    res = RunResult.load(d)
+    f = res.density_frames[2][1]
+    f.write_text("garbage")
+    mesh = pedmesh.triangulate(pedmesh.load_room(_room(tmp_path)))
+    capfd.readouterr()
+    with pytest.raises(pedmesh.PedmeshError, match=f.name + ".*cannot be read"):
+        res.density_at(res.density_frames[2][0], mesh)
+    assert capfd.readouterr().err == ""  # (VTK's own printing silenced)
+
+
+def test_more_api_arguments_are_checked(tmp_path):
+    import pedmesh.animate
+
+    room = _room(tmp_path)
+    for kw in (dict(out_dir="/proc/pedmesh-not-a-folder"), dict(out_dir="a\x00b"),
+               dict(mesh_options={"size": "x"}), dict(mesh_options={"max_area": "x"})):
+        with pytest.raises(pedmesh.PedmeshError):
+            pedmesh.simulate(room, t_end=1.0, **kw)
+    with pytest.raises(pedmesh.PedmeshError, match="fps"):
+        pedmesh.animate.animate_run(tmp_path, tmp_path / "a.gif", fps="fast")
+    with pytest.raises(pedmesh.PedmeshError, match="sweep"):
+        pedmesh.ensemble(room, "sfm", 1, tmp_path / "e", sweep="U_f", workers=1)

@@ -81,8 +81,9 @@ def test_the_trajectories_name_the_level(compared, tmp_path):
 
 
 def test_report_and_animation_lay_the_floors_side_by_side(compared, tmp_path):
-    """The report and the animation draw a building in its atlas (levels and stairs side by
-    side, stacked floors apart), every pedestrian on the piece their frame names."""
+    """The report and the animation draw a building as plans (one panel per level, stacked
+    floors apart, each stair in its bottom level's panel where it is), every pedestrian on
+    the piece their frame names."""
     import json
 
     from pedmesh.io.vtk import read_pvd_index, read_vtp
@@ -95,24 +96,38 @@ def test_report_and_animation_lay_the_floors_side_by_side(compared, tmp_path):
     assert note == "" and layout is not None
     assert np.array_equal(layout.triangles, layout.atlas.open.triangles)
     # stacked floors apart: no two levels' boxes overlap in the layout
-    boxes = [layout.points[np.unique(layout.triangles[p.triangles])] for p in s.pieces]
+    levels = [p for p in s.pieces if p.kind == "level"]
+    boxes = [layout.points[np.unique(layout.triangles[p.triangles])] for p in levels]
     lo = np.array([b.min(axis=0) for b in boxes])
     hi = np.array([b.max(axis=0) for b in boxes])
     k = len(boxes)
     overlap = ((lo[:, None] < hi[None] - 1e-9) & (lo[None] < hi[:, None] - 1e-9)).all(axis=2)
     assert not overlap[~np.eye(k, dtype=bool)].any()
+    # in plan: each level's cells at their plan position shifted to its panel
+    plan = np.asarray(s.points)[:, :2]
+    for p in levels:
+        v = np.unique(layout.triangles[p.triangles])
+        shift = layout.points[v] - plan[layout.atlas.to_surface[v]]
+        assert np.allclose(shift, layout.panel_shift[p.name])
     # every pedestrian of a frame mid-run lies in a triangle of their own piece
     frames = read_pvd_index(run / "pedestrians.pvd")
     pts, data = read_vtp(frames[len(frames) // 4][1])
-    xy = layout.crowd(pts, data["piece"])
-    tri = layout.atlas.open.locate(xy)
-    assert len(xy) > 50 and np.all(tri >= 0)
-    assert np.array_equal(s.piece[tri], np.asarray(data["piece"], np.int64))
+    piece = np.asarray(data["piece"], np.int64)
+    xy = layout.crowd(pts, piece)
+    assert len(xy) > 50
+    for q, k in zip(xy, piece):
+        corners = layout.points[layout.triangles[s.pieces[k].triangles]]  # (t, 3, 2)
+        a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+        d = (b[:, 1] - c[:, 1]) * (a[:, 0] - c[:, 0]) + (c[:, 0] - b[:, 0]) * (a[:, 1] - c[:, 1])
+        w1 = ((b[:, 1] - c[:, 1]) * (q[0] - c[:, 0]) + (c[:, 0] - b[:, 0]) * (q[1] - c[:, 1])) / d
+        w2 = ((c[:, 1] - a[:, 1]) * (q[0] - c[:, 0]) + (a[:, 0] - c[:, 0]) * (q[1] - c[:, 1])) / d
+        inside = (w1 >= -1e-6) & (w2 >= -1e-6) & (1 - w1 - w2 >= -1e-6)
+        assert inside.any()
     # the report says so, and the animation is written
     out = tmp_path / "office.html"
     assert main(["report", str(run), "-o", str(out)]) == 0
     html = out.read_text()
-    assert "levels and stairs side by side" in html and "draws single-level rooms" not in html
+    assert "one panel per level" in html and "draws single-level rooms" not in html
     gif = tmp_path / "office.gif"
     assert main(["animate", str(compared / "eos"), "-o", str(gif), "--max-frames", "2"]) == 0
     assert gif.stat().st_size > 10_000
