@@ -6,9 +6,10 @@ spheres coloured by speed. The ParaView steps of docs/running.md are these, done
 
 RUN_DIR is a ``pedmesh run`` folder; the frame nearest T [s] is shown (default: the middle
 of the run). A building's run (frames in 3-D) is shown from the front and above, its
-heights stretched (``Transform``, z x 3) so that every level shows between the others. With ``--mesh`` it shows a mesh written by ``pedmesh mesh -o MESH.vtu`` and
-its exits, picked out of the boundary line cells with a Threshold on ``boundary_kind``
-(1 wall, 2 obstacle, 3 exit). Prints what it rendered; exits non-zero with a message if
+heights stretched (``Transform``, z x 3) so that every level shows between the others.
+With ``--mesh`` it shows a mesh written by ``pedmesh mesh -o MESH.vtu`` and its exits,
+picked out of the boundary line cells with a Threshold on ``boundary_kind`` (1 wall, 2
+obstacle, 3 exit). Prints what it rendered; exits non-zero with a message if
 something it needs is missing.
 """
 

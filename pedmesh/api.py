@@ -64,7 +64,7 @@ def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
         if not isinstance(mesh_options, Mapping):
             raise ParameterError("mesh_options must be a mapping of option names to values, "
                                  f"e.g. {{'max_area': 0.5}}; got {type(mesh_options).__name__}")
-        from .geometry.site import MESH_OPTIONS as known
+        from .mesh.site import MESH_OPTIONS as known
 
         bad = [k for k in mesh_options if k not in known]
         if bad:
@@ -85,7 +85,8 @@ def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
 def _room_and_mesh(room, mesh, mesh_options: Mapping[str, Any] | None,
                    max_people: int | None = None):
     from .errors import RoomFileError
-    from .geometry.site import check_site, mesh_site
+    from .geometry.site import check_site
+    from .mesh.site import mesh_site
     from .io import load_room
     from .run.driver import check_crowd
 

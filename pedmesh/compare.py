@@ -245,9 +245,8 @@ def _check_compare_folder(out: Path, labels: list[str]) -> None:
     except (OSError, UnicodeDecodeError):
         ours = False
     for e in entries:
-        if e.name.startswith(".") or e in runs or (e.is_dir() and e.name in labels
-                                                   and not any(e.iterdir())):
-            continue
+        if e.name.startswith(".") or e in runs or (e.is_dir() and e.name in labels):
+            continue  # (a model's folder: its run owns it, and refuses what is not a run)
         if e.name in COMPARE_FILES and (ours or runs):
             continue
         raise RunFolderError(f"{out}: not empty and not a pedmesh comparison folder (it holds "

@@ -60,7 +60,7 @@ import numpy as np
 from ._version import __version__
 from .errors import ParameterError, PedmeshError
 from .run.results import FINISHED_STATUSES
-from .geometry.site import check_mesh_size, mesh_site
+from .mesh.site import check_mesh_size, mesh_site
 from .mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE
 from .parameters import DEFAULT_T_END_S
 

@@ -84,7 +84,6 @@ def nothing_big(monkeypatch):
     """Fails the test if a crowd is placed or a room meshed."""
     import sys
 
-    import pedmesh.cli.cmd_mesh as C
     import pedmesh.mesh as M
     from pedmesh.geometry.room import StartArea as SA
 
@@ -92,8 +91,11 @@ def nothing_big(monkeypatch):
         raise AssertionError("allocated before the crowd was checked")
 
     monkeypatch.setattr(SA, "lattice", refuse)
-    for module in (sys.modules["pedmesh.mesh.triangulate"], M, C):
+    for module in (sys.modules["pedmesh.mesh.triangulate"], M):
         monkeypatch.setattr(module, "triangulate", refuse)
+    import pedmesh.mesh.site as S
+
+    monkeypatch.setattr(S, "mesh_site", refuse)
 
 
 def test_a_crowd_above_max_people_is_refused_before_anything_is_allocated(nothing_big,

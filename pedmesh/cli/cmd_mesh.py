@@ -59,7 +59,8 @@ def mesh_from_args(args: argparse.Namespace, *, buildings: bool = False, check=N
     stairs) only where the command handles one (``buildings``), else a one-line error.
     ``check``: called with the room before it is meshed (e.g. the crowd's size)."""
     from ..errors import PedmeshError
-    from ..geometry.site import is_building, mesh_site
+    from ..geometry.site import is_building
+    from ..mesh.site import mesh_site
     from ..io import load_room
 
     room = load_room(args.geometry)

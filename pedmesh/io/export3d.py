@@ -180,7 +180,7 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
     else:
         merged = trimesh.util.concatenate(list(scene.dump()))
         data = merged.export(file_type=suffix[1:])
-    from ..run.output import temporary_beside, write_error
+    from .files import temporary_beside
 
     tmp = None
     try:
@@ -191,7 +191,7 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
     except OSError as exc:
         if tmp is not None:
             tmp.unlink(missing_ok=True)
-        raise write_error(p, exc) from None
+        raise PedmeshError(f"cannot write {p}: {exc.strerror or exc}") from None
     return p
 
 

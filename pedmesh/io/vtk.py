@@ -24,8 +24,8 @@ import numpy as np
 
 from ..errors import PedmeshError
 
-__all__ = ["FrameReadError", "frame_intact", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
-           "read_pvd_index", "read_vtu", "read_vtp"]
+__all__ = ["FrameReadError", "frame_intact", "mesh_to_meshio", "write_vtu", "write_vtp",
+           "PVDWriter", "read_pvd_index", "read_vtu", "read_vtp"]
 
 ArrayMap = Mapping[str, np.ndarray] | None
 

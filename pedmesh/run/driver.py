@@ -168,7 +168,7 @@ def check_room_mesh(room, mesh) -> None:
         raise ParameterError(f"the mesh given is {what}, not a mesh of "
                              f"{'building' if is_building(room) else 'room'} '{room.name}'; "
                              "leave out mesh= (pedmesh meshes it), or mesh it with "
-                             "pedmesh.geometry.site.mesh_site")
+                             "pedmesh.mesh.site.mesh_site")
     if room is None or not hasattr(room, "boundary_rings"):
         return
     from ..mesh.triangle_mesh import room_fingerprint

@@ -132,7 +132,7 @@ def building_layout(summary: dict, run_dir: Path,
         return None, f"the room file {path} could not be read: {exc}"
     if not is_building(room):
         return None, ""
-    from ..geometry.site import mesh_site
+    from ..mesh.site import mesh_site
     from ..mesh.atlas import build_atlas
     from ..mesh.triangle_mesh import BoundaryKind
 

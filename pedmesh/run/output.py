@@ -41,6 +41,7 @@ import numpy as np
 
 from .._version import __version__
 from ..analysis.evacuation import evacuation_times, evacuation_times_from_curve
+from ..io.files import temporary_beside
 from ..errors import PedmeshError
 from ..io.vtk import PVDWriter
 from ._rows import format_rows
@@ -161,19 +162,6 @@ def check_writable(path: str | os.PathLike) -> None:
         temporary_beside(path).unlink()
     except OSError as exc:
         raise OutputWriteError(exc.errno, exc.strerror or str(exc), str(path)) from None
-
-
-def temporary_beside(path: str | os.PathLike) -> Path:
-    """A new, empty file next to ``path`` with a name of its own (``.NAME.XXXXXX.part``
-    plus ``path``'s suffix), to write ``path`` into and rename: never a file of the
-    user's (``NAME.part`` may be theirs)."""
-    import tempfile
-
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.",
-                               suffix=".part" + path.suffix)
-    os.close(fd)
-    return Path(tmp)
 
 
 def write_error(path: str | os.PathLike, exc: BaseException) -> OutputWriteError:

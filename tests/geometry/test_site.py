@@ -14,7 +14,8 @@ import pytest
 
 import pedmesh
 from pedmesh.cli import main
-from pedmesh.geometry.site import is_building, mesh_site, site_levels
+from pedmesh.geometry.site import is_building, site_levels
+from pedmesh.mesh.site import mesh_site
 from pedmesh.io import load_room
 from pedmesh.mesh import triangulate, triangulate_building
 
