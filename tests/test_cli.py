@@ -178,3 +178,24 @@ def test_calibrate_bad_arguments_are_one_line(tmp_path, capsys, args, message):
     assert main(["calibrate", "-o", str(tmp_path / "e.json"), *args]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_run_seed_gives_another_realisation_and_the_same_twice(tmp_path, geometries_dir):
+    """Issue 46: `pedmesh run --seed N`."""
+    import json
+
+    room = geometries_dir / "corridor_bottleneck.json"
+
+    def traj(seed, name):
+        out = tmp_path / name
+        args = ["run", str(room), "--out", str(out), "-q", "--t-end", "3"]
+        assert main(args + (["--seed", str(seed)] if seed is not None else [])) == 0
+        s = json.loads((out / "summary.json").read_text())
+        return (out / "trajectories.txt").read_text(), s["parameters"]["seed"]
+
+    a, sa = traj(3, "a")
+    b, _ = traj(3, "b")
+    c, sc = traj(0, "c")
+    assert sa == 3 and sc == 0 and a == b and a != c
+    assert main(["run", str(room), "--model", "eos", "--seed", "1", "--out",
+                 str(tmp_path / "e"), "-q"]) == 2

@@ -71,6 +71,10 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--trajectory-rate", type=float, default=10.0, metavar="FPS",
                    help="(particle models) frames per second of the trajectory files "
                         "(default: 10)")
+    p.add_argument("--seed", type=int, default=None, metavar="N",
+                   help="(particle models) another realisation: the start positions jittered "
+                        "and the start areas' distributions drawn with seed N (default: the "
+                        "lattice as the room file gives it)")
     p.add_argument("--static-routes", action="store_true",
                    help="(particle models) keep the initial routes instead of re-solving "
                         "them from the density")
@@ -107,6 +111,11 @@ def run(args: argparse.Namespace) -> int:
         if "static_routes" not in entry.options:
             raise ParameterError(f"--static-routes does not apply to model '{name}'")
         model_options["static_routes"] = True
+    if args.seed is not None:
+        if "seed" not in entry.options:
+            raise ParameterError(f"--seed does not apply to model '{name}' (a continuum "
+                                 "model has one answer)")
+        model_options["seed"] = args.seed
     if args.trajectory_rate != 10.0:
         if "trajectory_rate" not in entry.options:
             raise ParameterError(f"--trajectory-rate does not apply to model '{name}'")
