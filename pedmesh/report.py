@@ -107,10 +107,16 @@ def _sec(v: Any, missing: str = "not reached") -> str:
 
 
 def _people(v: Any) -> str:
+    """People as a whole number for display (a continuum model's fractional mass is kept
+    exact in its files)."""
     if v is None:
         return "–"
-    f = float(v)
-    return str(int(round(f))) if abs(f - round(f)) < 0.05 else f"{f:.1f}"
+    return str(int(round(float(v))))
+
+
+def _unit(u: Any) -> str:
+    """A unit as the report writes units: m² rather than m^2."""
+    return str(u).replace("ped/m^2", "/m²").replace("^2", "²")
 
 
 def _exact(v: Any) -> str:
@@ -701,11 +707,11 @@ def _run_sentences(run: _Run) -> list[str]:
     if sf is not None:
         pk = sf.get("peak_density") or {}
         if _is_num(pk.get("value")):
-            unit = pk.get("unit") or "ped/m²"
+            unit = _unit(pk.get("unit") or "/m²")
             where = _where(room, pk.get("x"), pk.get("y"))
-            over = f" (over {pk['over']})" if pk.get("over") else ""
-            sentence = (f"The densest place was {_num(pk['value'], 3)} {unit}{over} at "
-                        f"t = {_sec(pk.get('t'), '?')}" + (f", {where}" if where else ""))
+            sentence = (f"The densest place was {_num(pk['value'], 3)} {unit} (averaged over "
+                        f"1 m²) at t = {_sec(pk.get('t'), '?')}"
+                        + (f", {where}" if where else ""))
             ta = sf.get("time_above") or {}
             if _is_num(ta.get("4")):
                 sentence += f"; the density was above 4 /m² for {_num(ta['4'], 3)} s"
@@ -718,8 +724,10 @@ def _run_sentences(run: _Run) -> list[str]:
                        f"was {los['worst']}.")
         cp = sf.get("crowd_pressure")
         if isinstance(cp, dict) and _is_num(cp.get("max")):
-            out.append(f"The crowd pressure peaked at {_num(cp['max'], 3)} "
-                       f"{cp.get('unit') or ''} at t = {_sec(cp.get('t'), '?')}.")
+            out.append(f"The crowd pressure (the local density times the spread of the "
+                       f"people's velocities; Helbing et al. 2007 saw crowd turbulence above "
+                       f"about 0.02 /s²) peaked at {_num(cp['max'], 3)} "
+                       f"{_unit(cp.get('unit') or '')} at t = {_sec(cp.get('t'), '?')}.")
     else:
         msg = f"The crowd-safety measures are not available for this run ({run.safety_missing})"
         fr = run.frames
@@ -1226,17 +1234,18 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
     rows: list[tuple[str, str]] = []
     pk = sf.get("peak_density") or {}
     if pk:
-        unit = pk.get("unit") or "ped/m²"
+        unit = _unit(pk.get("unit") or "/m²")
         where = ""
         if _is_num(pk.get("x")) and _is_num(pk.get("y")):
             where = f" at x = {_num(pk['x'])} m, y = {_num(pk['y'])} m"
-        over = f" (over {_esc(pk.get('over'))})" if pk.get("over") is not None else ""
+        over = (f' (<span title="{html.escape(_unit(pk["over"]))}">averaged over 1 m²</span>)'
+                if pk.get("over") is not None else "")
         if pk.get("level") is not None:  # a building's: in that level's plan
             where = f" on level '{_esc(pk['level'])}'" + where
         rows.append((f"peak density{over}",
                      f"{_num(pk.get('value'))} {_esc(unit)} at t = {_num(pk.get('t'))} s"
                      + where))
-    unit = sf.get("area_time_unit") or "m² s"
+    unit = _unit(sf.get("area_time_unit") or "m² s")
     for k in _THRESHOLDS:
         v = (sf.get("area_time_above") or {}).get(k)
         if v is not None or sf.get("area_time_above"):
@@ -1259,8 +1268,11 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
             where = ""
             if _is_num(cp.get("x")) and _is_num(cp.get("y")):
                 where = f" at x = {_num(cp['x'])} m, y = {_num(cp['y'])} m"
-            rows.append(("crowd pressure ρ Var(v) (largest)",
-                         f"{_num(cp.get('max'))} {_esc(cp.get('unit') or '')} at t = "
+            rows.append(('<span title="the local density times the variance of the people\'s '
+                         'velocities (Helbing, Johansson &amp; Al-Abideen 2007); crowd '
+                         'turbulence was seen above about 0.02 /s²">crowd pressure ρ Var(v) '
+                         '(largest)</span>',
+                         f"{_num(cp.get('max'))} {_esc(_unit(cp.get('unit') or ''))} at t = "
                          f"{_num(cp.get('t'))} s{where}"))
         elif "levels" in sf:
             rows.append(("crowd pressure ρ Var(v)", "not computed for buildings yet"))
@@ -1565,8 +1577,10 @@ def _runs_sections(page: _Page, runs: Sequence[_Run], comparisons: Sequence[Mapp
     flow = _flow_figure(runs)
     section("exits", "Exit usage", _exit_table(runs)
                  + (_img(flow, "flow through the exits against time") if flow else "")
-                 + "<p>People per exit as the run counted them (a continuum model's "
-                 "integrated outflow); first and last passage where known.</p>")
+                 + ("<p>People per exit as the run counted them (a continuum model's "
+                    "integrated outflow, rounded to whole people); first and last passage "
+                    "where known.</p>" if any(r.s.get("model") != "sfm" for r in runs) else
+                    "<p>People per exit as the run counted them; first and last passage.</p>"))
     stairs = _stair_table(runs)
     if stairs:
         section("stairs", "Stair use", stairs + (

@@ -201,21 +201,25 @@ def test_safety_section_is_shown(runs, tmp_path):
     (run / "summary.json").write_text(json.dumps(s, indent=2))
     html = build_report([run], frames=3)
     table = re.search(r'<table class="safety">(.*?)</table>', html, re.S).group(1)
-    for text in ("5.125 ped/m^2 at t = 8.5 s at x = 9.25 m, y = 2.75 m", "1 m^2 (Voronoi)",
-                 "area-time above 2 /m²</td><td>123.5 m^2 s",
-                 "area-time above 4 /m²</td><td>41.25 m^2 s",
-                 "area-time above 6 /m²</td><td>0 m^2 s",
+    for text in ("5.125 /m² at t = 8.5 s at x = 9.25 m, y = 2.75 m",
+                 'title="1 m² (Voronoi)">averaged over 1 m²',
+                 "area-time above 2 /m²</td><td>123.5 m² s",
+                 "area-time above 4 /m²</td><td>41.25 m² s",
+                 "area-time above 6 /m²</td><td>0 m² s",
                  "time above 2 /m²</td><td>9.75 s", "time above 4 /m²</td><td>3.5 s",
                  "time above 6 /m²</td><td>0 s",
                  "worst F; cells by their worst level: A: 17, B: 3, C: 4, D: 5, E: 6, F: 7",
-                 "0.0215 1/s^2 at t = 7.25 s at x = 9.5 m, y = 3 m",
+                 "0.0215 1/s² at t = 7.25 s at x = 9.5 m, y = 3 m",
                  "3 people, first at 5.05 s, last at 6.55 s",
                  "27 people, first at 1.35 s, last at 11.85 s",
                  "start area 'crowd' clear after</td><td>4.45 s",
                  "measurement area 'front' clear after</td><td>10.65 s"):
         assert text in table, text
     # the plain-language summary says it too
-    assert "The densest place was 5.12 ped/m^2 (over 1 m^2 (Voronoi)) at t = 8.5 s" in html
+    assert "The densest place was 5.12 /m² (averaged over 1 m²) at t = 8.5 s" in html
+    # (issue 46: one unit style, no technical averaging text in the summary sentence)
+    text = re.sub(r"<[^>]+>", " ", html.split("<h2>", 2)[1])
+    assert "m^2" not in text and "cells with centroids" not in text
     assert "in front of exit 'east'" in html
     assert "above 4 /m² for 3.5 s" in html
     assert "The worst level of service (Fruin, walkway) was F." in html
