@@ -199,3 +199,13 @@ def test_run_seed_gives_another_realisation_and_the_same_twice(tmp_path, geometr
     assert sa == 3 and sc == 0 and a == b and a != c
     assert main(["run", str(room), "--model", "eos", "--seed", "1", "--out",
                  str(tmp_path / "e"), "-q"]) == 2
+
+
+def test_the_progress_bar_counts_people(tmp_path, geometries_dir, capsys):
+    """Issue 46: progress as people out of all of them, the simulated time beside it."""
+    assert main(["run", str(geometries_dir / "corridor_bottleneck.json"), "--out",
+                 str(tmp_path / "r"), "--t-end", "30"]) == 0
+    err = capsys.readouterr().err.replace("\r", "\n")
+    last = [ln for ln in err.splitlines() if " out " in ln][-1]
+    # stopped at t_end with people inside: the bar says how many are out, not 100 %
+    assert "/150 out" in last and "t=30.0/30 s" in last and "100%" not in last

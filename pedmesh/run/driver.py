@@ -301,15 +301,18 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
                    safety=safety)
 
 
-def _progress_bar(name: str, t_end: float, quiet: bool):
+def _progress_bar(name: str, n_people: float, quiet: bool):
+    """The run's progress as people out of all of them (the percentage of the evacuation,
+    with tqdm's estimate of the time left from the rate people leave); the simulated time
+    beside it."""
     from tqdm import tqdm
 
     tty = sys.stderr.isatty()
-    return tqdm(total=round(t_end, 3), unit="s", disable=quiet, file=sys.stderr,
-                dynamic_ncols=True, desc=f"{name}", leave=True,
-                mininterval=0.5 if tty else 30.0,
-                bar_format="{desc}: {percentage:3.0f}%|{bar}| t={n:.1f}/{total:.0f} s "
-                           "[{elapsed}<{remaining}] {postfix}")
+    return tqdm(total=max(1, round(float(n_people))), unit="ped", disable=quiet,
+                file=sys.stderr, dynamic_ncols=True, desc=f"{name}", leave=True,
+                mininterval=0.5 if tty else 30.0, smoothing=0.1,
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} out "
+                           "[{elapsed}<{remaining}]{postfix}")
 
 
 def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the output") -> dict:
@@ -336,7 +339,7 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
         if use_background(plan.parameters.get("threads"), writer):
             writer = BackgroundWriter(writer)  # (the steps on threads, the output beside)
         writer.start(extra)
-        bar = _progress_bar(name, plan.t_end, quiet)
+        bar = _progress_bar(name, run.n_initial, quiet)
         frame = _loop(run, writer, plan.t_end, bar)
         if isinstance(writer, BackgroundWriter):
             writer.drain()  # (a write error is the run's)
@@ -449,7 +452,15 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
             next_frame += run.output_interval * max(1, k)
 
     record()
-    last_bar = 0.0
+    last_bar, shown = 0.0, 0
+
+    def show() -> None:  # (whole people out; the simulated time beside them)
+        nonlocal shown
+        out = min(int(round(run.evacuated)), bar.total)
+        bar.set_postfix_str(f"t={min(run.t, t_end):.1f}/{t_end:g} s", refresh=False)
+        bar.update(out - shown)
+        shown = out
+
     while not run.done and run.t < t_end - 1e-9:
         run.step(t_end if dense else min(next_frame, t_end))
         if run.done or run.t >= t_end - 1e-9:
@@ -458,11 +469,10 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
         if stop_requested():
             raise KeyboardInterrupt
         if run.t - last_bar >= 0.5:
-            bar.update(round(min(run.t, t_end) - last_bar, 3))
-            last_bar = min(run.t, t_end)
-            bar.set_postfix_str(f"inside {run.remaining:.0f}/{run.n_initial:.0f}", refresh=False)
+            show()
+            last_bar = run.t
     record(final=True)  # the final state
-    bar.update(round(min(run.t, t_end) - last_bar, 3))
-    if run.done:
-        bar.total = bar.n
+    show()
+    if run.done and bar.n < bar.total:  # (a continuum's last fraction of a person)
+        bar.update(bar.total - bar.n)
     return frame
