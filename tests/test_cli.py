@@ -209,3 +209,19 @@ def test_the_progress_bar_counts_people(tmp_path, geometries_dir, capsys):
     last = [ln for ln in err.splitlines() if " out " in ln][-1]
     # stopped at t_end with people inside: the bar says how many are out, not 100 %
     assert "/150 out" in last and "t=30.0/30 s" in last and "100%" not in last
+
+
+def test_a_first_run_says_it_compiles(tmp_path, geometries_dir, capsys, monkeypatch):
+    """Issue 46: a one-line notice while the kernels compile (here: as if the cache were
+    empty), none once they are cached."""
+    import pedmesh.cli.cmd_run as R
+
+    room = str(geometries_dir / "corridor_bottleneck.json")
+    assert main(["run", room, "--out", str(tmp_path / "a0"), "--t-end", "1", "-q"]) == 0
+    assert R.kernels_compiled(True)  # (cached now, if not before)
+    assert main(["run", room, "--out", str(tmp_path / "a"), "--t-end", "1"]) == 0
+    assert "compiling" not in capsys.readouterr().err
+    monkeypatch.setattr(R, "kernels_compiled", lambda particle: False)
+    assert main(["run", room, "--out", str(tmp_path / "b"), "--t-end", "1"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("pedmesh: compiling the numerical kernels")

@@ -87,6 +87,31 @@ def add_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 
+#: a kernel of each kind of model whose numba cache says whether the kernels were compiled
+#: (the module's __pycache__ holds its index, NAME.FUNCTION-LINE.pyXY.nbi)
+_KERNELS = {"sfm": ("models/sfm", "kernels.rk3_step-"),
+            "continuum": ("models/continuum", "fv_kernels.")}
+
+
+def kernels_compiled(particle: bool) -> bool:
+    """Whether the numerical kernels of a particle (or continuum) model are in numba's
+    cache already (else the first run compiles them, once per install)."""
+    import pedmesh
+
+    sub, prefix = _KERNELS["sfm" if particle else "continuum"]
+    cache = Path(pedmesh.__file__).parent / sub / "__pycache__"
+    return cache.is_dir() and any(p.name.startswith(prefix) and p.suffix == ".nbi"
+                                  for p in cache.iterdir())
+
+
+def compile_notice(particle: bool) -> str | None:
+    """The line said before a first run compiles the kernels (None if cached)."""
+    if kernels_compiled(particle):
+        return None
+    return ("pedmesh: compiling the numerical kernels (once per install: a few minutes on 2 "
+            "cores; later runs start in seconds)")
+
+
 def run(args: argparse.Namespace) -> int:
     import sys
 
@@ -120,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
         if "trajectory_rate" not in entry.options:
             raise ParameterError(f"--trajectory-rate does not apply to model '{name}'")
         model_options["trajectory_rate"] = args.trajectory_rate
+    notice = compile_notice(entry.scale == "particles")
+    if notice and not args.quiet:
+        print(notice, file=sys.stderr, flush=True)
     try:
         with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current step
             s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,
