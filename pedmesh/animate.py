@@ -44,15 +44,10 @@ class _Frames:
         self.pedestrians = dict(read_pvd_index(peds)) if peds.is_file() else {}
         self.layout = None  # a building's plans (one panel per level), else the plan
         self.note = ""
-        from .io.vtk import frame_intact
+        from .io.vtk import check_frames_whole
 
-        for _, f in self.density:  # (every frame whole, not only those shown)
-            if not frame_intact(f):
-                read_vtu(f)  # (raises, naming the file and what is wrong)
-        for f in self.pedestrians.values():
-            if not frame_intact(f):
-                raise PedmeshError(f"{f}: missing or cut short (pedestrians.pvd lists it); "
-                                   "rerun the run, or remove the frame's line from its .pvd")
+        # (every frame whole, not only those shown)
+        check_frames_whole([f for _, f in self.density] + list(self.pedestrians.values()))
         first = read_vtu(self.density[0][1])
         self._read = {0: first}  # (the first frame, read once: field(0) takes it)
         pts, tri, _, _ = first
@@ -64,22 +59,13 @@ class _Frames:
 
     def field(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(points (n, 2), triangles (m, 3), cell density (m,) [ped/m^2]) of frame k."""
-        from .io.vtk import read_vtu
+        from .io.vtk import check_same_mesh, frame_density, read_vtu
 
         got = self._read.pop(k, None)
         path = self.density[k][1]
         pts, tri, pd, cd = got if got is not None else read_vtu(path)
-        if len(pts) != self._mesh[0] or not np.array_equal(tri, self._mesh[1]):
-            raise PedmeshError(f"{path}: a frame of another mesh ({len(pts)} points, "
-                               f"{len(tri)} triangles; the run's first frame has "
-                               f"{self._mesh[0]} and {len(self._mesh[1])}, other triangles)")
-        if "rho" in cd:
-            rho = np.asarray(cd["rho"], float)
-        elif "density" in pd:  # the social force model's kernel density at the vertices
-            rho = np.asarray(pd["density"], float)[tri].mean(axis=1)
-        else:
-            raise PedmeshError(f"{path}: no density field ('rho' or 'density'): not a "
-                               "density frame of a pedmesh run")
+        check_same_mesh(path, pts, tri, *self._mesh)
+        rho = frame_density(path, pd, cd, tri)
         if self.layout is not None:
             return self.layout.points, self.layout.triangles, rho
         return np.asarray(pts)[:, :2], np.asarray(tri), rho

@@ -298,21 +298,15 @@ class _Run:
     @cached_property
     def evacuation(self) -> tuple[np.ndarray, np.ndarray]:
         """The evacuation curve; a note if evacuation.csv is missing (a run that failed
-        before its first step), :class:`ReportError` naming it if it cannot be read."""
+        before its first step), a one-line error naming it if it cannot be read."""
         if not (self.path / "evacuation.csv").exists():
             self.notes.append("evacuation.csv is missing: no evacuation curve")
             return np.zeros(0), np.zeros(0)
-        try:
-            return self.result.evacuation
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        return self.result.evacuation
 
     @cached_property
     def outflow(self) -> tuple[np.ndarray, np.ndarray, list[str]]:
-        try:
-            return self.result.outflow
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        return self.result.outflow
 
     @cached_property
     def exit_passages(self) -> dict[str, list[float]]:
@@ -323,10 +317,7 @@ class _Run:
             return out
         from .run.tables import crossings_from_rows, read_rows
 
-        try:
-            _, names, times = crossings_from_rows(read_rows(p)[1], p)
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        _, names, times = crossings_from_rows(read_rows(p)[1], p)
         for name, t in zip(names, times):
             out.setdefault(name, []).append(float(t))
         return out
@@ -354,10 +345,7 @@ class _Run:
         from .io.vtk import read_pvd_index
 
         p = self.path / "pedestrians.pvd"
-        try:
-            return read_pvd_index(p) if p.exists() else []
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        return read_pvd_index(p) if p.exists() else []
 
     def positions_at(self, t: float) -> np.ndarray | None:
         """Pedestrian positions [m] of the saved frame at ``t`` (particle models), None if
@@ -371,10 +359,7 @@ class _Run:
             return None
         from .io.vtk import read_vtp
 
-        try:
-            pts, data = read_vtp(fr[k][1])
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        pts, data = read_vtp(fr[k][1])
         if not len(pts):
             return np.zeros((0, 2))
         if self.layout is not None and "piece" in data:
@@ -425,9 +410,9 @@ class _Frames:
 
     @classmethod
     def read(cls, run_dir: Path) -> "_Frames | None":
-        """The frames of ``run_dir``; None if the run saved none; :class:`ReportError`
-        naming the file if its index or first frame cannot be read."""
-        from .io.vtk import frame_intact, read_pvd_index, read_vtu
+        """The frames of ``run_dir``; None if the run saved none; a one-line error naming
+        the file if its index or a frame is not whole or cannot be read."""
+        from .io.vtk import check_frames_whole, frame_density, read_pvd_index, read_vtu
 
         p = run_dir / "density.pvd"
         saved = sorted((run_dir / "density").glob("density_*.vtu")) \
@@ -437,26 +422,18 @@ class _Frames:
                 raise ReportError(f"{p}: missing, though density/ holds {len(saved)} frames "
                                   "(the index of the frames is lost: rerun the run)")
             return None
-        try:
-            index = read_pvd_index(p)
-            if not index:
-                if saved:
-                    raise ReportError(f"{p}: lists no frames, though density/ holds "
-                                      f"{len(saved)} (rerun the run)")
-                return None
-            for _, f in index:  # (every frame whole, not only those the report shows)
-                if not frame_intact(f):
-                    read_vtu(f)  # (raises, naming the file and what is wrong)
-            pts, tri, pd, cd = read_vtu(index[0][1])
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        index = read_pvd_index(p)
+        if not index:
+            if saved:
+                raise ReportError(f"{p}: lists no frames, though density/ holds "
+                                  f"{len(saved)} (rerun the run)")
+            return None
+        check_frames_whole(f for _, f in index)  # (not only the frames the report shows)
+        pts, tri, pd, cd = read_vtu(index[0][1])
         self = cls(np.array([t for t, _ in index], float), [f for _, f in index],
                    np.asarray(pts)[:, :2].copy(), tri, float(np.ptp(np.asarray(pts)[:, 2])))
         self._n_points = len(pts)
-        self._cache[0] = _cell_density(pd, cd, tri)
-        if self._cache[0] is None:
-            raise ReportError(f"{index[0][1]}: no density field ('rho' or 'density'): not a "
-                              "density frame of a pedmesh run")
+        self._cache[0] = frame_density(index[0][1], pd, cd, tri)
         return self
 
     @cached_property
@@ -470,25 +447,16 @@ class _Frames:
         return self.points[self.triangles].mean(axis=1)
 
     def density(self, k: int) -> np.ndarray | None:
-        """Cell density [ped/m^2] of frame ``k`` (None if it cannot be read or its mesh
-        differs from the first frame's)."""
+        """Cell density [ped/m^2] of frame ``k``; a one-line error naming it if it cannot be
+        read, has no density field or its mesh differs from the first frame's."""
         if k in self._cache:
             return self._cache[k]
-        from .io.vtk import read_vtu
+        from .io.vtk import check_same_mesh, frame_density, read_vtu
 
-        try:
-            pts, tri, pd, cd = read_vtu(self.paths[k])
-        except PedmeshError as exc:
-            raise ReportError(str(exc)) from None
+        pts, tri, pd, cd = read_vtu(self.paths[k])
         own = self.triangles if self.frame_triangles is None else self.frame_triangles
-        if len(pts) != self._n_points or not np.array_equal(tri, own):
-            raise ReportError(f"{self.paths[k]}: a frame of another mesh ({len(pts)} points, "
-                              f"{len(tri)} triangles; the run's first frame has "
-                              f"{self._n_points} and {len(own)}, other triangles)")
-        rho = _cell_density(pd, cd, own)
-        if rho is None:
-            raise ReportError(f"{self.paths[k]}: no density field ('rho' or 'density'): not "
-                              "a density frame of a pedmesh run")
+        check_same_mesh(self.paths[k], pts, tri, self._n_points, own)
+        rho = frame_density(self.paths[k], pd, cd, own)
         if len(self._cache) < 4096:
             self._cache[k] = rho
         return rho
@@ -500,24 +468,11 @@ class _Frames:
         when = np.zeros(len(self.triangles))
         for k in range(len(self.times)):
             rho = self.density(k)
-            if rho is None:
-                continue
             up = rho > best
             best[up] = rho[up]
             when[up] = self.times[k]
             self._cache.pop(k, None)  # the snapshots read the few frames they show again
         return best, when
-
-
-def _cell_density(pd: Mapping, cd: Mapping, tri: np.ndarray) -> np.ndarray | None:
-    """Cell density [ped/m^2] of a frame's point fields ``pd`` and cell fields ``cd``."""
-    if "rho" in cd:
-        return np.asarray(cd["rho"], float)
-    if "density" in cd:
-        return np.asarray(cd["density"], float)
-    if "density" in pd:
-        return np.asarray(pd["density"], float)[tri].mean(axis=1)
-    return None
 
 
 def _ensemble_meta_problem(meta: Any) -> str | None:

@@ -24,8 +24,9 @@ import numpy as np
 
 from ..errors import PedmeshError
 
-__all__ = ["FrameReadError", "frame_intact", "mesh_to_meshio", "write_vtu", "write_vtp",
-           "PVDWriter", "read_pvd_index", "read_vtu", "read_vtp"]
+__all__ = ["FrameReadError", "frame_intact", "check_frames_whole", "frame_density",
+           "check_same_mesh", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
+           "read_pvd_index", "read_vtu", "read_vtp"]
 
 ArrayMap = Mapping[str, np.ndarray] | None
 
@@ -353,10 +354,7 @@ def _read_xml(reader_class, path):
     from vtkmodules.vtkCommonCore import vtkCommand, vtkObject
 
     path = Path(path)
-    if not path.is_file():
-        raise FrameReadError(f"{path}: missing (the run's index lists it)")
-    if not frame_intact(path):
-        raise FrameReadError(_unreadable(path))
+    check_frames_whole([path])
     errors: list[str] = []
     r = reader_class()
     r.AddObserver(vtkCommand.ErrorEvent, lambda obj, ev: errors.append(ev))
@@ -385,6 +383,44 @@ def frame_intact(path: str | Path) -> bool:
             return b"</VTKFile>" in f.read()
     except OSError:
         return False
+
+
+def check_frames_whole(paths) -> None:
+    """A :class:`FrameReadError` naming the first of ``paths`` (frames a run's index
+    lists) that is missing or not whole (:func:`frame_intact`); reads their last bytes
+    only."""
+    for path in map(Path, paths):
+        if not path.is_file():
+            raise FrameReadError(f"{path}: missing (the run's index lists it)")
+        if not frame_intact(path):
+            raise FrameReadError(_unreadable(path))
+
+
+def frame_density(path, point_data: Mapping, cell_data: Mapping,
+                  triangles: np.ndarray) -> np.ndarray:
+    """Cell density [ped/m^2] of the density frame read from ``path``: its cell field
+    ``rho`` (a continuum model's), else a cell field ``density``, else its vertex field
+    ``density`` (a particle model's) averaged over ``triangles``; a
+    :class:`FrameReadError` naming ``path`` if it has none."""
+    if "rho" in cell_data:
+        return np.asarray(cell_data["rho"], float)
+    if "density" in cell_data:
+        return np.asarray(cell_data["density"], float)
+    if "density" in point_data:
+        return np.asarray(point_data["density"], float)[triangles].mean(axis=1)
+    raise FrameReadError(f"{path}: no density field ('rho' or 'density'): not a density "
+                         "frame of a pedmesh run")
+
+
+def check_same_mesh(path, points: np.ndarray, triangles: np.ndarray, n_points: int,
+                    own: np.ndarray) -> None:
+    """A :class:`FrameReadError` naming the frame read from ``path`` unless its mesh
+    (``points``, ``triangles``) is the run's first frame's (``n_points`` points, triangles
+    ``own``)."""
+    if len(points) != n_points or not np.array_equal(triangles, own):
+        raise FrameReadError(f"{path}: a frame of another mesh ({len(points)} points, "
+                             f"{len(triangles)} triangles; the run's first frame has "
+                             f"{n_points} and {len(own)}, other triangles)")
 
 
 def _unreadable(path: Path) -> str:

@@ -116,7 +116,7 @@ class RunResult:
         to ``t``. Vertex fields (particle models) are averaged to the cells. ``mesh``: the
         mesh the run was made on; another mesh is refused (its vertices or triangles differ
         from the frame's)."""
-        from ..io.vtk import read_vtu
+        from ..io.vtk import frame_density, read_vtu
 
         frames = self.density_frames
         if not frames:
@@ -125,16 +125,12 @@ class RunResult:
         ft, f = frames[k]
         pts, ftri, pd, cd = read_vtu(f)  # (a broken frame: FrameReadError naming it)
         _check_frame_mesh(f, pts, ftri, mesh)
-        if "rho" in cd:
-            rho = np.asarray(cd["rho"])
-            vel = np.asarray(cd["velocity"])[:, :2] if "velocity" in cd else \
-                np.zeros((len(rho), 2))
-        elif "density" in pd:
-            tri = mesh.triangles
-            rho = np.asarray(pd["density"])[tri].mean(axis=1)
+        tri = mesh.triangles
+        rho = frame_density(f, pd, cd, tri)
+        if "rho" in cd:  # (a continuum's velocity per cell, a particle model's per vertex)
+            v = cd.get("velocity")
+            vel = np.zeros((len(rho), 2)) if v is None else np.asarray(v)[:, :2]
+        else:
             v = pd.get("velocity")
             vel = np.zeros((len(tri), 2)) if v is None else np.asarray(v)[:, :2][tri].mean(axis=1)
-        else:
-            raise PedmeshError(f"{f}: no density field ('rho' or 'density'): not a density "
-                               "frame of a pedmesh run")
         return ft, rho, vel

@@ -12,6 +12,7 @@ import pytest
 import pedmesh
 from pedmesh.cli import main
 from pedmesh.run import RunResult
+from test_faults import _one_line_error  # (the first sweep's: one line, not internal)
 
 #: exit names a user may well write: quotes, a comma, a newline, non-ASCII
 NAMES = ('Door "A"', "Door A, north", 'Tür "Ä",\nnord')
@@ -29,13 +30,6 @@ def _room(tmp_path: Path, names=NAMES[:2], n: int = 20) -> Path:
     p = tmp_path / "room.json"
     p.write_text(json.dumps(room), encoding="utf-8")
     return p
-
-
-def _one_line_error(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1, err
-    assert err[0].startswith("pedmesh: error:") and "internal error" not in err[0], err
-    return err[0]
 
 
 # ---------------------------------------------------------------- names are data
