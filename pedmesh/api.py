@@ -61,15 +61,9 @@ def _check_arguments(*, mesh=None, params=None, mesh_options=None, t_end=None,
         if bad:
             raise ParameterError(f"params: parameter names are text, got {bad[0]!r}")
     if mesh_options is not None:
-        if not isinstance(mesh_options, Mapping):
-            raise ParameterError("mesh_options must be a mapping of option names to values, "
-                                 f"e.g. {{'max_area': 0.5}}; got {type(mesh_options).__name__}")
-        from .mesh.site import MESH_OPTIONS as known
+        from .mesh.site import check_mesh_options
 
-        bad = [k for k in mesh_options if k not in known]
-        if bad:
-            raise ParameterError(f"mesh_options: unknown option {bad[0]!r} (options: "
-                                 f"{', '.join(known)})")
+        check_mesh_options(mesh_options)
     if t_end is not None and (isinstance(t_end, bool) or not isinstance(t_end, Real)):
         raise ParameterError(f"t_end must be a number of seconds, got {type(t_end).__name__} "
                              f"{t_end!r:.40}")

@@ -34,7 +34,6 @@ import datetime as _dt
 import html
 import io
 import json
-import os
 import math
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -1703,21 +1702,16 @@ def write_report(folders: Sequence[str | Path], out: str | Path, *,
                  frames: int = DEFAULT_FRAMES, title: str | None = None) -> Path:
     """Write the report of ``folders`` (run, compare or ensemble folders) to the HTML file
     ``out`` and return its path (see :func:`build_report`)."""
-    from .run.output import check_writable, temporary_beside, write_error
+    from .io.files import write_whole
+    from .run.output import check_writable, write_error
 
     out = Path(out)
     if out.suffix.lower() not in (".html", ".htm"):
         raise ReportError(f"{out}: the report is an HTML page; use a .html suffix")
     check_writable(out)  # (before the minutes of reading and drawing)
     text = build_report(folders, frames=frames, title=title)
-    tmp = None
     try:
-        tmp = temporary_beside(out)
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, out)
+        return write_whole(out, text)
     except OSError as exc:
-        if tmp is not None:
-            tmp.unlink(missing_ok=True)
         raise write_error(out, exc) from None
-    return out
 

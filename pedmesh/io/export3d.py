@@ -180,19 +180,12 @@ def export_room_3d(room, path: str | Path, **kw: Any) -> Path:
     else:
         merged = trimesh.util.concatenate(list(scene.dump()))
         data = merged.export(file_type=suffix[1:])
-    from .files import temporary_beside
+    from .files import write_whole
 
-    tmp = None
-    try:
-        tmp = temporary_beside(p)  # (a name of its own: never a file of the user's)
-        with open(tmp, "wb") as f:
-            f.write(data if isinstance(data, bytes) else data.encode("utf-8"))
-        tmp.replace(p)
+    try:  # (through a temporary file of its own: never a file of the user's)
+        return write_whole(p, data if isinstance(data, bytes) else data.encode("utf-8"))
     except OSError as exc:
-        if tmp is not None:
-            tmp.unlink(missing_ok=True)
         raise PedmeshError(f"cannot write {p}: {exc.strerror or exc}") from None
-    return p
 
 
 def read_positions(run_dir: Path, t: float | None) -> tuple[float, np.ndarray]:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["temporary_beside"]
+__all__ = ["temporary_beside", "write_whole"]
 
 
 def temporary_beside(path: str | os.PathLike) -> Path:
@@ -21,3 +21,23 @@ def temporary_beside(path: str | os.PathLike) -> Path:
                                suffix=".part" + path.suffix)
     os.close(fd)
     return Path(tmp)
+
+
+def write_whole(path: str | os.PathLike, data: str | bytes) -> Path:
+    """Write ``data`` (text as UTF-8, or bytes) to ``path`` through a
+    :func:`temporary_beside` renamed when complete; a failed write removes its temporary
+    file and raises the OSError."""
+    path = Path(path)
+    tmp = None
+    try:
+        tmp = temporary_beside(path)
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            tmp.write_text(data, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None:
+            tmp.unlink(missing_ok=True)
+        raise
+    return path

@@ -3,12 +3,12 @@ one set of options and one set of errors, whatever it is."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 from ..errors import MeshError, ParameterError
 from ..geometry.site import Site, is_building, site_levels
 
-__all__ = ["mesh_site", "MESH_OPTIONS", "check_mesh_size"]
+__all__ = ["mesh_site", "MESH_OPTIONS", "check_mesh_options", "check_mesh_size"]
 
 #: the options :func:`mesh_site` takes (those of :func:`pedmesh.mesh.triangulate`); a
 #: building takes them but ``exit_size`` and ``size``
@@ -26,40 +26,44 @@ def mesh_site(site: Site, **options: Any):
     from .building import triangulate_building
     from .triangulate import triangulate
 
-    bad = [k for k in options if k not in MESH_OPTIONS]
-    if bad:
-        raise ParameterError(f"unknown mesh option '{bad[0]}' (options: "
-                             f"{', '.join(MESH_OPTIONS)})")
-    for k, v in options.items():
-        _check_option(k, v)
+    check_mesh_options(options, site)
     opts = {k: v for k, v in options.items() if v is not None or k in ("feature_area",
                                                                       "max_cells")}
     if is_building(site):
-        room_only = [k for k in _ROOM_ONLY if opts.get(k) is not None]
-        if room_only:
-            flag = room_only[0].replace("_", "-")
-            raise MeshError(f"{room_only[0]} (--{flag}) is not available for buildings")
         return triangulate_building(site, **{k: v for k, v in opts.items()
                                              if k not in _ROOM_ONLY})
     return triangulate(site, **opts)
 
 
-def _check_option(key: str, value: Any) -> None:
-    """A one-line error for a mesh option's value of the wrong kind (its range is the
-    mesher's to check)."""
+def check_mesh_options(options: Any, site: Site | None = None) -> None:
+    """A one-line error for ``options`` that :func:`mesh_site` cannot take: not a mapping,
+    an unknown name, a value of the wrong kind (its range is the mesher's to check), or,
+    for a building ``site``, a room-only option given."""
     import numbers
 
-    if value is None:
-        return
-    if key == "size":
-        if not callable(value):
-            raise ParameterError(f"mesh option 'size' must be a function of the points "
-                                 f"(an (n, 2) array [m]) giving edge lengths [m], got "
-                                 f"{type(value).__name__}")
-        return
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ParameterError(f"mesh option '{key}' must be a number, got "
-                             f"{type(value).__name__} {value!r:.40}")
+    if not isinstance(options, Mapping):
+        raise ParameterError("mesh_options must be a mapping of option names to values, "
+                             f"e.g. {{'max_area': 0.5}}; got {type(options).__name__}")
+    bad = [k for k in options if k not in MESH_OPTIONS]
+    if bad:
+        raise ParameterError(f"mesh_options: unknown option {bad[0]!r} (options: "
+                             f"{', '.join(MESH_OPTIONS)})")
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key == "size":
+            if not callable(value):
+                raise ParameterError(f"mesh option 'size' must be a function of the points "
+                                     f"(an (n, 2) array [m]) giving edge lengths [m], got "
+                                     f"{type(value).__name__}")
+        elif isinstance(value, bool) or not isinstance(value, numbers.Real):
+            raise ParameterError(f"mesh option '{key}' must be a number, got "
+                                 f"{type(value).__name__} {value!r:.40}")
+    if site is not None and is_building(site):
+        room_only = [k for k in _ROOM_ONLY if options.get(k) is not None]
+        if room_only:
+            flag = room_only[0].replace("_", "-")
+            raise MeshError(f"{room_only[0]} (--{flag}) is not available for buildings")
 
 
 def check_mesh_size(site: Site, mesh_options: dict, max_cells: float | None) -> None:
@@ -72,8 +76,7 @@ def check_mesh_size(site: Site, mesh_options: dict, max_cells: float | None) -> 
     from .triangulate import MAX_CELLS, check_max_cells, estimate_cells, size_fields
 
     check_max_cells(max_cells)
-    if is_building(site) and mesh_options.get("exit_size") is not None:
-        raise MeshError("exit_size (--exit-size) is not available for buildings")
+    check_mesh_options(mesh_options, site)
     limit = MAX_CELLS if max_cells is None else max_cells
     if not math.isfinite(limit) or not (mesh_options["max_area"] > 0):
         return  # no limit, or a bad max_area that the mesher reports itself
