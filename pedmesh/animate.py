@@ -3,9 +3,10 @@ models) over the room, with a clock, as MP4 or GIF (``pedmesh animate``). A buil
 drawn as plans, one panel per level, each stair where it is
 (:mod:`pedmesh.run.layout`).
 
-The frames are the run's own output frames (``density.pvd``, ``pedestrians.pvd``, one per
-output interval). MP4 is written with the ffmpeg binary of the ``imageio-ffmpeg`` wheel
-through matplotlib's writer, GIF with Pillow: nothing needs a system ffmpeg.
+The frames are the run's own output frames (density and pedestrians, one per output
+interval, read by :class:`~pedmesh.run.results.RunResult`). MP4 is written with the ffmpeg
+binary of the ``imageio-ffmpeg`` wheel through matplotlib's writer, GIF with Pillow:
+nothing needs a system ffmpeg.
 """
 
 from __future__ import annotations
@@ -28,20 +29,20 @@ class _Frames:
     """A run's output frames (density, and for particle models the pedestrians)."""
 
     def __init__(self, run_dir: Path) -> None:
-        from .io.vtk import read_pvd_index, read_vtu
+        from .io.run_folder import DENSITY_PVD
+        from .io.vtk import read_vtu
         from .run.results import RunResult
 
         self.dir = run_dir
         self.result = RunResult.load(run_dir)
-        pvd = run_dir / "density.pvd"
+        pvd = self.result.file(DENSITY_PVD)
         if not pvd.is_file():
-            raise PedmeshError(f"{run_dir}: no density.pvd (not a run folder, or a run "
+            raise PedmeshError(f"{run_dir}: no {DENSITY_PVD} (not a run folder, or a run "
                                "that wrote no frames)")
-        self.density = read_pvd_index(pvd)
+        self.density = self.result.density_frames
         if not self.density:
             raise PedmeshError(f"{pvd}: no frames")
-        peds = run_dir / "pedestrians.pvd"
-        self.pedestrians = dict(read_pvd_index(peds)) if peds.is_file() else {}
+        self.pedestrians = dict(self.result.pedestrian_frames)
         self.layout = None  # a building's plans (one panel per level), else the plan
         self.note = ""
         from .io.vtk import check_frames_whole

@@ -7,10 +7,11 @@ returns its results; :func:`build` gives the model ready to step.
 {'T50': 84.1, 'T90': 105.6, 'T100': 123.1}
 >>> t, n_out = result.evacuation                                     # doctest: +SKIP
 
-Without ``out_dir`` nothing is written: the curves, frames and trajectories stay in memory
-(:class:`~pedmesh.run.memory.MemoryResult`). With ``out_dir`` the run writes its folder as
-``pedmesh run`` does and the result reads it (:class:`~pedmesh.run.results.RunResult`);
-both have ``summary``, ``evacuation``, ``outflow`` and ``exit_times``.
+Without ``out_dir`` nothing is written: the curves, frames and trajectories stay in memory.
+With ``out_dir`` the run writes its folder as ``pedmesh run`` does and the result reads it.
+Either way the result is a :class:`~pedmesh.run.results.RunResult` with the same
+attributes: ``summary``, ``times``, ``evacuation``, ``outflow``, ``exit_times``,
+``density`` frames and ``density_at(t)``, ``pedestrians``, ``trajectories``, ...
 
 The stepping form builds the model and leaves the loop to you::
 

@@ -31,6 +31,7 @@ import numba as nb
 import numpy as np
 
 from .errors import ParameterError, PedmeshError
+from .io.run_folder import TRAJECTORIES_TXT
 from .models.sfm.kernels import pair_force
 from .models.continuum.eos_file import DEFAULT_EOS, EOS_FORMAT, load_eos, save_eos
 from .models.sfm.params import SocialForceParams
@@ -600,7 +601,7 @@ def measure_fundamental_diagram(preset: str | None = None, seeds: int = 2,
                           t_end=FD_WINDOW[1] + 0.2, out_dir=out, quiet=True, preset=preset,
                           model_options={"seed": seed, "trajectory_rate": FD_FPS},
                           safety=False)  # (a scratch measurement run)
-                rho, u, n = box_density_speed(out / "trajectories.txt")
+                rho, u, n = box_density_speed(out / TRAJECTORIES_TXT)
                 rows.append({"rho0": rho0, "seed": seed, "density": rho, "speed": u,
                              "samples": n, "wall_s": time.perf_counter() - t0})
                 if log is not None:

@@ -26,6 +26,7 @@ from .analysis import (
 )
 from .errors import ParameterError, PedmeshError
 from .parameters import DEFAULT_T_END_S
+from .io import run_folder as F
 from .run.results import RunResult
 
 __all__ = ["ModelSpec", "parse_model_specs", "run_comparison", "ComparisonResult"]
@@ -104,13 +105,10 @@ def _outflow_total(res: RunResult, kernel: bool = False, window: float = 2.0):
     at the exits (outflow_kernel.csv), which sees only the pedestrians still inside (those
     who crossed are removed) and so reads about half the crossing rate."""
     if kernel:
-        p = res.path / "outflow_kernel.csv"
-        if not p.exists():
+        if not res.has_table(F.OUTFLOW_KERNEL):
             return None
-        from .run.tables import read_number_table
-
-        d = read_number_table(p)[1]
-        return d[:, 0], d[:, 1:].sum(axis=1)
+        t, flows, _ = res.outflow_kernel
+        return t, flows.sum(axis=1)
     t, n = res.evacuation
     if len(t) < 2:
         return None
@@ -161,7 +159,7 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
         wanted = run_settings(spec.name, overrides=spec.overrides, t_end=t_end,
                               geometry=geometry, mesh_options=mesh_options, preset=preset)
         why = "no run there yet"
-        if (d / "summary.json").exists():
+        if F.has_summary(d):
             try:
                 res = RunResult.load(d)
             except PedmeshError as exc:  # a broken summary: run it again
@@ -221,26 +219,21 @@ def run_comparison(room, mesh, specs: Sequence[ModelSpec], out_dir: str | Path, 
 
 
 #: the files a comparison writes into its folder (beside one run folder per model)
-COMPARE_FILES = ("comparison.csv", "comparison.md", "stairs.csv", "evacuation.png",
-                 "outflow.png", "fundamental.png", "density.png")
+COMPARE_FILES = F.COMPARISON_FILES
 
 
 def _check_compare_folder(out: Path, labels: list[str]) -> None:
     """A one-line error unless ``out`` is new, empty or a comparison's folder: every entry
     a file a comparison writes or a pedmesh run folder (its summary.json), so that a user's
     files are never written over."""
-    from .run.output import RunFolderError
-
-    from .run.output import read_summary
-
     if not out.exists():
         return
     if not out.is_dir():
-        raise RunFolderError(f"{out}: not a folder; choose another --out")
+        raise F.RunFolderError(f"{out}: not a folder; choose another --out")
     entries = sorted(out.iterdir(), key=lambda p: p.name)
-    runs = [e for e in entries if e.is_dir() and read_summary(e)[0] is not None]
+    runs = [e for e in entries if e.is_dir() and F.good_summary(e) is not None]
     try:
-        with open(out / "comparison.csv", encoding="utf-8") as f:
+        with open(out / F.COMPARISON_CSV, encoding="utf-8") as f:
             ours = f.readline().startswith("label,model,")
     except (OSError, UnicodeDecodeError):
         ours = False
@@ -249,7 +242,7 @@ def _check_compare_folder(out: Path, labels: list[str]) -> None:
             continue  # (a model's folder: its run owns it, and refuses what is not a run)
         if e.name in COMPARE_FILES and (ours or runs):
             continue
-        raise RunFolderError(f"{out}: not empty and not a pedmesh comparison folder (it holds "
+        raise F.RunFolderError(f"{out}: not empty and not a pedmesh comparison folder (it holds "
                              f"'{e.name}'); choose another --out (pedmesh does not write into "
                              "other files)")
 
@@ -264,7 +257,7 @@ def _fmt(v, digits=2):
 
 def _write_tables(out: Path, rows: list[dict], ref: str) -> None:
     keys = list(dict.fromkeys(k for r in rows for k in r))
-    with open(out / "comparison.csv", "w", newline="", encoding="utf-8") as f:
+    with open(out / F.COMPARISON_CSV, "w", newline="", encoding="utf-8") as f:
         w = csv.DictWriter(f, fieldnames=keys)
         w.writeheader()
         for r in rows:
@@ -275,7 +268,7 @@ def _write_tables(out: Path, rows: list[dict], ref: str) -> None:
     for r in rows:
         lines.append("| " + " | ".join(_fmt(r.get(k), 4 if "distance" in k or "L1" in k else 1)
                                        for k in keys) + " |")
-    (out / "comparison.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    (out / F.COMPARISON_MD).write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 def _write_stairs(out: Path, runs: dict) -> None:
@@ -287,7 +280,7 @@ def _write_stairs(out: Path, runs: dict) -> None:
             for name, u in (res.summary.get("stairs") or {}).items() if isinstance(u, dict)]
     if not rows:
         return
-    with open(out / "stairs.csv", "w", newline="", encoding="utf-8") as f:
+    with open(out / F.COMPARISON_STAIRS, "w", newline="", encoding="utf-8") as f:
         w = csv.DictWriter(f, fieldnames=["label", "stair", *keys])
         w.writeheader()
         for r in rows:
@@ -304,7 +297,7 @@ def _write_stairs(out: Path, runs: dict) -> None:
                          f"{_fmt(u['last'], 1)} s, {_fmt(u['peak_flow'], 2)} /s, "
                          f"{_fmt(u['peak_density'], 2)} /m^2")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    with open(out / "comparison.md", "a", encoding="utf-8") as f:
+    with open(out / F.COMPARISON_MD, "a", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
 
 
@@ -316,14 +309,14 @@ def _plots(out, room, mesh, runs, n0, density_times) -> dict:
     fig, ax = plt.subplots(figsize=(6, 4))
     plot_evacuation(ax, {k: r.evacuation for k, r in runs.items()}, n0)
     fig.tight_layout()
-    fig.savefig(out / "evacuation.png", dpi=120)
+    fig.savefig(out / F.COMPARISON_PLOTS["evacuation"], dpi=120)
     plt.close(fig)
     flows = {k: f for k, r in runs.items() if (f := _outflow_total(r)) is not None}
     if flows:
         fig, ax = plt.subplots(figsize=(6, 4))
         plot_outflow(ax, flows)
         fig.tight_layout()
-        fig.savefig(out / "outflow.png", dpi=120)
+        fig.savefig(out / F.COMPARISON_PLOTS["outflow"], dpi=120)
         plt.close(fig)
     diagrams = {}
     for k, r in runs.items():
@@ -335,7 +328,7 @@ def _plots(out, room, mesh, runs, n0, density_times) -> dict:
         rr = np.linspace(0, 10.5, 200)
         plot_fundamental(ax, diagrams, (rr, reference_flow(density=rr)))
         fig.tight_layout()
-        fig.savefig(out / "fundamental.png", dpi=120)
+        fig.savefig(out / F.COMPARISON_PLOTS["fundamental"], dpi=120)
         plt.close(fig)
     labels = list(runs)
     nt = len(density_times)
@@ -356,6 +349,6 @@ def _plots(out, room, mesh, runs, n0, density_times) -> dict:
             ax.tick_params(labelsize=6)
     if tp is not None:
         fig.colorbar(tp, ax=axes, shrink=0.8, label="density [ped/m^2]")
-    fig.savefig(out / "density.png", dpi=120)
+    fig.savefig(out / F.COMPARISON_PLOTS["density"], dpi=120)
     plt.close(fig)
     return diagrams

@@ -46,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ParameterError
+from .io.run_folder import TRAJECTORIES_TXT
 
 __all__ = [
     "CORRIDOR_WIDTH_M",
@@ -263,9 +264,10 @@ def load_run(path: str | Path):
     pedpy = _pedpy()
     path = Path(path)
     if path.is_dir():
-        path = path / "trajectories.txt"
+        path = path / TRAJECTORIES_TXT
     if not path.is_file():
-        raise ParameterError(f"{path}: no trajectory file (an SFM run writes trajectories.txt)")
+        raise ParameterError(f"{path}: no trajectory file (an SFM run writes "
+                             f"{TRAJECTORIES_TXT})")
     return pedpy.load_trajectory_from_txt(trajectory_file=path,
                                           default_unit=pedpy.TrajectoryUnit.METER)
 

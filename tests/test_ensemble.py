@@ -223,7 +223,7 @@ def _assert_csv_agrees_with_summaries(out, *, statuses=FINISHED):
 
 def _tasks(room, out, members, t_end=30.0, overrides=None):
     """The tasks ensemble() sends to its workers, by hand (as benchmarks/ensemble.py does)."""
-    from pedmesh.ensembles import _plan
+    from pedmesh.ensembles.plan import plan_members
     from pedmesh.io import load_room
     from pedmesh.mesh.triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE
     from pedmesh.presets import resolve_preset
@@ -231,8 +231,9 @@ def _tasks(room, out, members, t_end=30.0, overrides=None):
     preset = resolve_preset(None, load_room(room))
     mesh_options = {"max_area": MAX_AREA, "min_angle": MIN_ANGLE,
                     "feature_area": FEATURE_AREA, "exit_size": None}
-    plan = _plan(str(room), "sfm", members, out, overrides=dict(overrides or {}), sweep={},
-                 seed=0, t_end=t_end, mesh_options=mesh_options, preset=preset, seeded=True)
+    plan = plan_members(str(room), "sfm", members, out, overrides=dict(overrides or {}),
+                        sweep={}, seed=0, t_end=t_end, mesh_options=mesh_options,
+                        preset=preset, seeded=True)
     return [{"member": m.member, "point": m.point, "seed": m.seed, "values": {},
              "geometry": str(room.resolve()), "model": "sfm", "overrides": m.overrides,
              "t_end": t_end, "out_dir": str(m.out_dir.resolve()), "mesh_options": mesh_options,
@@ -368,10 +369,10 @@ def test_interrupted_ensemble_takes_statuses_from_the_summaries(room_b, tmp_path
                                                                 monkeypatch):
     """Issue 36, item 12: Ctrl-C while a member has finished on its worker but is not yet
     collected; ensemble.csv still says `finished` for it, as its summary does."""
-    import pedmesh.ensembles as ens
+    from pedmesh.ensembles import running
 
     out = tmp_path / "ens"
-    real = ens._write_csv
+    real = running.write_csv  # (ensemble.csv as the members are collected)
     state = {"raised": False}
 
     def interrupted(path, frame):
@@ -384,7 +385,7 @@ def test_interrupted_ensemble_takes_statuses_from_the_summaries(room_b, tmp_path
                     for m in ("000-0000", "000-0001")):
                 time.sleep(0.05)
             raise KeyboardInterrupt
-    monkeypatch.setattr(ens, "_write_csv", interrupted)
+    monkeypatch.setattr(running, "write_csv", interrupted)
     with pytest.raises(KeyboardInterrupt):
         ensemble(room_b, "sfm", 2, out, client=client, quiet=True, t_end=30.0)
     assert state["raised"]

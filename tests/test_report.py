@@ -420,3 +420,219 @@ def test_building_report_names_every_level_and_stair(browser, office_report,
     assert len(per_level) == len(office.levels)
     stairs = browser.find_elements(By.XPATH, "//section[@id='stairs']//tbody/tr")
     assert len(stairs) == len(office.stairs)
+
+
+# ------------------------------------------------------------------ the package's layout
+def test_the_report_package_is_split_in_small_modules():
+    """Issue 46: each module of pedmesh.report under 600 lines, and none imports another's
+    private (underscore) names."""
+    import ast
+
+    import pedmesh.report
+
+    root = Path(pedmesh.report.__file__).parent
+    modules = sorted(root.glob("*.py"))
+    assert {"load.py", "measures.py", "figures.py", "html.py", "plausibility.py"} <= {
+        p.name for p in modules}
+    for p in modules:
+        text = p.read_text(encoding="utf-8")
+        assert len(text.splitlines()) < 600, p.name
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                private = [a.name for a in node.names if a.name.startswith("_")]
+                assert private == [], f"{p.name} imports {private} from .{node.module}"
+
+
+# ------------------------------------------------------------------ plausibility checks
+def _flow(jb: float, width: float, seconds: float = 60.0):
+    """A steady flow of ``jb`` people/(m s) through an exit ``width`` m wide."""
+    t = np.round(np.arange(0.0, seconds + 1e-9, 0.1), 6)
+    return t, np.where(t > 0, jb * width, 0.0)
+
+
+def test_the_bottleneck_band_is_every_published_point():
+    from pedmesh.report.plausibility import bottleneck_band
+    from pedmesh.validation import published_bottleneck_flows
+
+    jb = [J / b for s in published_bottleneck_flows() for b, J in s["points"]]
+    lo, hi, n, b0, b1 = bottleneck_band()
+    assert (lo, hi, n) == (min(jb), max(jb), len(jb))
+    assert 1.5 < lo < 1.7 and 2.6 < hi < 2.8 and (b0, b1) == (0.4, 5.0)
+
+
+@pytest.mark.parametrize("factor, verdict", [(0.5, "below"), (1.0, "within"),
+                                             (1.05, "edge"), (1.2, "outside")])
+def test_the_exit_flow_check(factor, verdict):
+    from pedmesh.report.plausibility import bottleneck_band, exit_flow_check
+
+    lo, hi = bottleneck_band()[:2]
+    jb = {0.5: 0.5 * lo, 1.0: 0.5 * (lo + hi)}.get(factor, factor * hi)
+    c = exit_flow_check("door", 2.5, *_flow(jb, 2.5))
+    assert c.verdict == verdict and c.flagged == (verdict == "outside")
+    assert c.value == pytest.approx(jb, rel=1e-6) and c.unit == "people/(m·s)"
+    assert "exit 'door' (2.5 m wide)" in c.measure
+    assert f"{lo:.2f}-{hi:.2f} people/(m·s)" in c.reference
+    if verdict == "outside":
+        assert f"{100 * (factor - 1):.0f} % above the highest experiment" in c.comment
+
+
+def test_the_exit_flow_check_takes_the_largest_mean_over_10_s():
+    from pedmesh.report.plausibility import exit_flow_check
+
+    t = np.round(np.arange(0.0, 100.0, 0.1), 6)
+    flow = np.where((t > 40) & (t <= 45), 20.0, 2.0)  # 5 s at 20 /s: 11 /s over 10 s
+    c = exit_flow_check("door", 4.0, t, flow)
+    assert c.value == pytest.approx(11.0 / 4.0, rel=0.02)
+    assert exit_flow_check("door", None, t, flow).verdict == "unknown"
+    assert exit_flow_check("door", 4.0, t, 0 * flow).verdict == "unknown"
+
+
+def test_the_peak_density_check():
+    from pedmesh.report.plausibility import peak_density_check
+
+    assert peak_density_check(5.0).verdict == "within"
+    pressing = peak_density_check(7.3, over="averaged over 1 m²")
+    assert pressing.verdict == "within" and "pressing" in pressing.comment
+    assert pressing.measure == "peak density (averaged over 1 m²)"
+    assert peak_density_check(9.5).flagged
+    assert peak_density_check(None).verdict == "unknown"
+
+
+def test_the_speed_bands_weigh_the_people():
+    from pedmesh.report.plausibility import speed_bands
+    from pedmesh.validation import weidmann_speed
+
+    rho = np.array([1.0, 1.0, 2.0, 0.2, 7.0])
+    speed = np.array([1.2, 0.6, 0.8, 1.3, 0.1])
+    area = np.array([1.0, 3.0, 1.0, 1.0, 1.0])
+    bands = speed_bands([(rho, speed, area)], edges=(0.5, 1.5, 2.5))
+    assert [(b.lo, b.hi) for b in bands] == [(0.5, 1.5), (1.5, 2.5), (2.5, np.inf)]
+    assert bands[0].speed == pytest.approx((1.2 * 1 + 0.6 * 3) / 4)  # by people, not cells
+    assert bands[0].weidmann == pytest.approx(weidmann_speed(1.0))
+    assert [b.share for b in bands] == pytest.approx([4 / 13, 2 / 13, 7 / 13])
+    assert bands[2].weidmann == 0.0  # beyond the jam density
+
+
+def test_the_speed_check():
+    from pedmesh.report.plausibility import SpeedBand, speed_check, speed_tolerance
+    from pedmesh.validation import EXPERIMENT_TABLE, weidmann_speed
+
+    tol, spread, excess = speed_tolerance()
+    r = EXPERIMENT_TABLE["uo-180-180-180"]  # the Jülich run furthest above the diagram
+    assert excess == pytest.approx(r["speed"] - weidmann_speed(r["density"]))
+    assert spread == 0.26 and 0.45 < tol < 0.55
+    w = 0.66
+    assert speed_check(SpeedBand(1.5, 2.5, 0.3, w + tol + 0.01, w)).flagged
+    assert speed_check(SpeedBand(1.5, 2.5, 0.3, w + tol - 0.01, w)).verdict == "within"
+    assert speed_check(SpeedBand(1.5, 2.5, 0.3, w - tol - 0.01, w)).verdict == "below"
+    assert speed_check(SpeedBand(1.5, 2.5, 0.01, 3.0, w)).verdict == "unknown"
+    c = speed_check(SpeedBand(5.5, np.inf, 0.3, 0.1, 0.0))
+    assert c.measure == "walking speed at 5.5 /m² and more" and c.unit == "m/s"
+
+
+def test_the_preset_is_named_with_what_it_was_fitted_to():
+    from pedmesh.presets import PRESETS
+    from pedmesh.report.plausibility import preset_sentence
+
+    text = preset_sentence({"preset": "validated"})
+    assert text == f"Parameter preset 'validated': {PRESETS['validated'].description}."
+    paper = preset_sentence({"preset": "paper", "overrides": {"U_f": 1.2}})
+    assert paper.startswith(f"Parameter preset 'paper': {PRESETS['paper'].description}.")
+    assert "not fitted to measurements of real crowds" in paper
+    assert "sets 1 parameter itself (U_f = 1.2): the preset's fit does not cover it" in paper
+    assert "before pedmesh recorded presets" in preset_sentence({})
+
+
+def test_the_summary_sentence():
+    from pedmesh.report.plausibility import (Panel, exit_flow_check, peak_density_check,
+                                             summary_sentence)
+
+    ok = Panel("", [peak_density_check(4.0)])
+    assert "within what real crowds were measured to do" in summary_sentence(ok)
+    bad = Panel("", [peak_density_check(4.0), exit_flow_check("door", 2.0, *_flow(5.0, 2.0))])
+    assert summary_sentence(bad).startswith(
+        "Plausibility: outside what real crowds were measured to do: peak flow per metre of "
+        "width, exit 'door' (2 m wide): 5.00 people/(m·s)")
+
+
+#: rooms of 100 people under the paper's preset (Table 1: its results do not change): a
+#: 3 m door passes about 2.6 people/(m s), within the published bottleneck flows; a 2 m
+#: door with a denser crowd about 3.5, more than 10 % above the highest
+DOORS = {"wide": (20, 10, 3.0, 10, 1.0), "narrow": (16, 8, 2.0, 8, 0.8)}
+
+
+@pytest.fixture(scope="module")
+def door_reports(tmp_path_factory):
+    d = tmp_path_factory.mktemp("doors")
+    out = {}
+    for key, (length, width, door, start, spacing) in DOORS.items():
+        y0 = width / 2 - door / 2
+        room = {"format": "pedmesh-room", "version": 1, "name": f"{key}_door", "units": "m",
+                "outline": [[0, 0], [length, 0], [length, width], [0, width]],
+                "exits": [{"name": "door", "polyline": [[length, y0], [length, y0 + door]]}],
+                "start_areas": [{"name": "crowd", "spacing": spacing, "polygon": [
+                    [0, 0], [start, 0], [start, width], [0, width]]}]}
+        path = d / f"{key}.json"
+        path.write_text(json.dumps(room))
+        run = d / f"{key}-paper"
+        assert main(["run", str(path), "--model", "sfm", "--preset", "paper", "--out",
+                     str(run), "-q"]) == 0
+        out[key] = write_report([run], d / f"{key}.html", frames=3)
+    return out
+
+
+def _plausibility_in_browser(browser, path: Path) -> tuple[list[str], str, str]:
+    """(the verdicts' classes, the panel's text, the summary's text) of a report as
+    Chromium shows it."""
+    from selenium.webdriver.common.by import By
+
+    browser.get_log("browser")
+    browser.get(path.resolve().as_uri())
+    assert browser.execute_script("return document.readyState") == "complete"
+    assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
+    panel = browser.find_element(By.ID, "plausibility")
+    verdicts = [e.get_attribute("class").split()[-1]
+                for e in panel.find_elements(By.CSS_SELECTOR, ".verdict")]
+    summary = browser.find_element(By.ID, "summary").text
+    return verdicts, panel.text, summary
+
+
+def test_plausibility_panel_in_headless_chromium(browser, door_reports):
+    """The panel flags the narrow door's flow and not the wide door's, and names the
+    preset with what it was (not) fitted to."""
+    verdicts, text, summary = _plausibility_in_browser(browser, door_reports["narrow"])
+    assert verdicts[0] == "outside" and "✗ outside: flagged" in text
+    assert "peak flow per metre of width, exit 'door' (2 m wide)" in text
+    assert "Parameter preset 'paper'" in text and "not fitted to measurements" in text
+    assert "Plausibility: outside what real crowds were measured to do" in summary
+    verdicts, text, summary = _plausibility_in_browser(browser, door_reports["wide"])
+    assert "outside" not in verdicts and verdicts[0] == "within"
+    assert "Nothing outside what real crowds were measured to do" in text
+    assert "Plausibility: the exit flows" in summary
+    for words in ("Weidmann", "people/(m·s)", "walking speed at 0.5-1.5 /m²",
+                  "peak density (averaged over 1 m²)"):
+        assert words in text
+
+
+@pytest.mark.slow
+def test_example2_plausibility_in_headless_chromium(browser, geometries_dir, tmp_path):
+    """Issue 46: the panel flags Example 2's exit under the paper's preset (about 4.8
+    people/(m s), far above any experiment) and nothing under the validated preset (2.9:
+    at the edge, within the tolerance)."""
+    shown = {}
+    for preset in ("paper", "validated"):
+        run = tmp_path / f"ex2-{preset}"
+        assert main(["run", str(geometries_dir / "example2.json"), "--model", "sfm",
+                     "--preset", preset, "--out", str(run), "-q"]) == 0
+        shown[preset] = _plausibility_in_browser(
+            browser, write_report([run], tmp_path / f"{preset}.html", frames=2))
+    verdicts, text, summary = shown["paper"]
+    assert verdicts[0] == "outside"
+    assert "peak flow per metre of width, exit 'exit' (10 m wide)" in text
+    flow = float(re.search(r"\(10 m wide\) ([\d.]+) people", text).group(1))
+    assert flow > 4.0
+    assert "Plausibility: outside what real crowds" in summary
+    verdicts, text, summary = shown["validated"]
+    assert "outside" not in verdicts and verdicts[0] in ("within", "edge")
+    assert "Parameter preset 'validated': fitted to real crowds" in text
+    assert "Plausibility: outside" not in summary

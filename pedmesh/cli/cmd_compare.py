@@ -85,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"pedmesh: {exc}; finished models are kept and reused next time", file=sys.stderr)
         return 130
     if not args.quiet:
-        print((out / "comparison.md").read_text())
+        from ..io.run_folder import COMPARISON_MD
+
+        print((out / COMPARISON_MD).read_text())
     print(f"results in {out}")
     return 0

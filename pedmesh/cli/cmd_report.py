@@ -43,10 +43,11 @@ def add_args(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import time
 
+    from ..io.run_folder import REPORT_HTML
     from ..report import write_report
 
     t0 = time.perf_counter()
-    out = Path(args.output) if args.output else Path(args.folders[0]) / "report.html"
+    out = Path(args.output) if args.output else Path(args.folders[0]) / REPORT_HTML
     path = write_report(args.folders, out, frames=args.frames, title=args.title)
     size = path.stat().st_size
     print(f"wrote {path} ({size / 1e6:.1f} MB) in {time.perf_counter() - t0:.1f} s")

@@ -193,13 +193,14 @@ def read_positions(run_dir: Path, t: float | None) -> tuple[float, np.ndarray]:
     middle of the run if None) of a run folder."""
     import pyvista as pv
 
+    from .run_folder import PEDESTRIANS_PVD
     from .vtk import read_pvd_index
 
     if t is not None and not (isinstance(t, (int, float)) and math.isfinite(t) and t >= 0):
         raise PedmeshError(f"the time must be a finite number of seconds >= 0, got {t!r}")
-    pvd = Path(run_dir) / "pedestrians.pvd"
+    pvd = Path(run_dir) / PEDESTRIANS_PVD
     if not pvd.exists():
-        raise PedmeshError(f"{run_dir}: no pedestrians.pvd (a social force run folder?)")
+        raise PedmeshError(f"{run_dir}: no {PEDESTRIANS_PVD} (a social force run folder?)")
     frames = read_pvd_index(pvd)
     if not frames:
         raise PedmeshError(f"{pvd}: no frames")

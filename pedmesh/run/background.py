@@ -28,14 +28,16 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..io.run_folder import QUEUED_WRITES, WRITER_METHODS
+
 __all__ = ["BackgroundWriter", "MAX_PENDING", "use_background"]
 
 #: calls waiting to be written before the stepping thread waits for the writer
 MAX_PENDING = 64
 
-#: the RunWriter methods that only write (and return nothing): these go to the thread
-WRITES = frozenset({"call", "sample", "outflow", "append_rows", "density_frame",
-                    "pedestrian_frame", "trajectory_frame"})
+#: the writer methods that only write (and return nothing): these go to the thread (the
+#: queued writes of the writer protocol, :data:`pedmesh.io.run_folder.WRITER_METHODS`)
+WRITES = QUEUED_WRITES
 
 _STOP = object()
 
@@ -107,6 +109,11 @@ class BackgroundWriter:
         attr = getattr(self._writer, name)
         if name in WRITES:
             return lambda *args, **kwargs: self._submit(attr, args, kwargs)
+        if callable(attr) and not name.startswith("_") and name not in WRITER_METHODS:
+            # (a write method nobody declared would run here, out of order with the queue)
+            raise TypeError(f"{type(self._writer).__name__}.{name} is not a method of the "
+                            "writer protocol (pedmesh.io.run_folder.WRITER_METHODS); declare "
+                            "it queued or immediate there")
         return attr
 
     @property

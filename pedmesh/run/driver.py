@@ -18,7 +18,8 @@ from .._signals import request_stop, stop_on_signals, stop_requested
 from ..errors import ParameterError, PedmeshError, SimulationError
 from ..models import CONTINUUM, DenseFrames, ModelEntry, get_model
 from .background import BackgroundWriter, use_background
-from .output import RunWriter, _clean, file_sha256
+from ..io.run_folder import json_safe
+from .output import RunWriter, file_sha256
 from ..models.protocol import RunModel
 
 __all__ = ["run_model", "build_model", "plan_run", "execute", "RunPlan", "run_settings",
@@ -63,7 +64,7 @@ def run_settings(model: str, *, overrides: Mapping[str, Any] | None = None, t_en
     room_hash = None
     if geometry is not None and Path(geometry).is_file():
         room_hash = file_sha256(geometry)
-    return _clean({
+    return json_safe({
         "room_sha256": room_hash,
         "model": model,
         "preset": preset,
@@ -302,17 +303,10 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
 
 
 def _progress_bar(name: str, n_people: float, quiet: bool):
-    """The run's progress as people out of all of them (the percentage of the evacuation,
-    with tqdm's estimate of the time left from the rate people leave); the simulated time
-    beside it."""
-    from tqdm import tqdm
+    """The run's progress bar (:func:`pedmesh.run.progress.progress_bar`)."""
+    from .progress import progress_bar
 
-    tty = sys.stderr.isatty()
-    return tqdm(total=max(1, round(float(n_people))), unit="ped", disable=quiet,
-                file=sys.stderr, dynamic_ncols=True, desc=f"{name}", leave=True,
-                mininterval=0.5 if tty else 30.0, smoothing=0.1,
-                bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} out "
-                           "[{elapsed}<{remaining}]{postfix}")
+    return progress_bar(name, n_people, quiet)
 
 
 def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the output") -> dict:
@@ -452,14 +446,11 @@ def _loop(run: RunModel, writer: RunWriter, t_end: float, bar) -> int:
             next_frame += run.output_interval * max(1, k)
 
     record()
-    last_bar, shown = 0.0, 0
+    last_bar = 0.0
 
     def show() -> None:  # (whole people out; the simulated time beside them)
-        nonlocal shown
-        out = min(int(round(run.evacuated)), bar.total)
         bar.set_postfix_str(f"t={min(run.t, t_end):.1f}/{t_end:g} s", refresh=False)
-        bar.update(out - shown)
-        shown = out
+        bar.advance(run.evacuated, run.t)
 
     while not run.done and run.t < t_end - 1e-9:
         run.step(t_end if dense else min(next_frame, t_end))

@@ -1,7 +1,7 @@
-"""A run's output kept in memory (the Python API without an output directory): the same
-methods as :class:`~pedmesh.run.output.RunWriter`, collecting arrays instead of files, and
-the result they make (:class:`MemoryResult`, with the fields of
-:class:`~pedmesh.run.results.RunResult`)."""
+"""A run's output kept in memory (the Python API without an output directory): the writer
+protocol of :mod:`pedmesh.io.run_folder` (the methods of :class:`~pedmesh.run.output.RunWriter`),
+collecting arrays instead of files; its result is a :class:`~pedmesh.run.results.RunResult`
+as a run folder's is."""
 
 from __future__ import annotations
 
@@ -14,10 +14,11 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import PedmeshError
-from .output import _clean
-from .tables import crossings_from_rows
+from ..io.run_folder import json_safe
+from .results import (BUILDING_TRAJECTORY_DTYPE, TRAJECTORY_DTYPE, MemoryOutput,
+                      RunResult)
 
-__all__ = ["MemoryWriter", "MemoryResult"]
+__all__ = ["MemoryWriter"]
 
 
 class MemoryWriter:
@@ -36,6 +37,7 @@ class MemoryWriter:
         self.pedestrians: list[tuple[float, np.ndarray, dict]] = []
         self.trajectory: list[np.ndarray] = []
         self.frame_rate: float | None = None
+        self.triangles: np.ndarray | None = None
         self.summary: dict[str, Any] = {**self.header, "status": "running"}
 
     def start(self, header: Mapping[str, Any] | None = None) -> None:
@@ -61,6 +63,8 @@ class MemoryWriter:
             for r in rows)
 
     def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
+        if self.triangles is None:
+            self.triangles = np.array(mesh.triangles, np.int64)
         self.density.append((float(t), copy.deepcopy(dict(point_data or {})),
                              copy.deepcopy(dict(cell_data or {}))))
 
@@ -89,84 +93,19 @@ class MemoryWriter:
         self.frame_rate = float(frame_rate)
 
     def finish(self, **summary: Any) -> dict[str, Any]:
-        self.summary = _clean({**self.header, **summary})
+        self.summary = json_safe({**self.header, **summary})
         return self.summary
 
-    def result(self) -> "MemoryResult":
-        """What the run made, as a :class:`MemoryResult`."""
+    def result(self) -> RunResult:
+        """What the run made, as a :class:`~pedmesh.run.results.RunResult` (the type a
+        run folder is read as)."""
         ev = np.array(self.evacuation, float).reshape(-1, 2)
         t_out = np.array([r[0] for r in self.outflow_rows], float)
         flows = np.array([r[1] for r in self.outflow_rows], float).reshape(
             len(self.outflow_rows), len(self.exit_names))
-        exits = self.tables.get("exits.csv", ("", []))[1]
         traj = (np.concatenate(self.trajectory) if self.trajectory
                 else np.zeros(0, TRAJECTORY_DTYPE))
-        return MemoryResult(
-            summary=self.summary, evacuation=(ev[:, 0], ev[:, 1]),
-            outflow=(t_out, flows, list(self.exit_names)),
-            exit_times=crossings_from_rows(exits)[2],
-            density=self.density, pedestrians=self.pedestrians, trajectories=traj,
-            frame_rate=self.frame_rate)
-
-
-#: one row of a trajectory: pedestrian id, frame number, position [m]
-TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float),
-                             ("y", float)])
-#: a building's rows: also the height z [m] and the level or stair (its name)
-BUILDING_TRAJECTORY_DTYPE = np.dtype([("id", np.int64), ("frame", np.int64), ("x", float),
-                                      ("y", float), ("z", float), ("place", object)])
-
-
-@dataclass
-class MemoryResult:
-    """The outputs of a run kept in memory, with the fields of
-    :class:`~pedmesh.run.results.RunResult` (``summary``, ``evacuation``, ``outflow``,
-    ``exit_times``) and the frames themselves:
-
-    * ``density``: (t [s], point data, cell data) per frame, e.g. the continuum's cell
-      density ``rho`` [ped/m^2] and ``velocity`` [m/s], the particle models' vertex
-      ``density``;
-    * ``pedestrians``: (t [s], positions (n, 2) [m], per-pedestrian data) per frame
-      (particle models);
-    * ``trajectories``: a structured array (id, frame, x [m], y [m]; on a building also z
-      [m] and place, the level or stair) at ``frame_rate``
-      frames/s (particle models; frame k is at t = k / frame_rate).
-    """
-
-    summary: dict
-    evacuation: tuple[np.ndarray, np.ndarray]
-    outflow: tuple[np.ndarray, np.ndarray, list[str]]
-    exit_times: np.ndarray
-    density: list = field(default_factory=list, repr=False)
-    pedestrians: list = field(default_factory=list, repr=False)
-    trajectories: np.ndarray = field(default_factory=lambda: np.zeros(0, TRAJECTORY_DTYPE),
-                                     repr=False)
-    frame_rate: float | None = None
-    #: no output directory: the result lives in memory
-    path: None = None
-
-    @property
-    def model(self) -> str:
-        return self.summary["model"]
-
-    @property
-    def status(self) -> str | None:
-        return self.summary.get("status")
-
-    @property
-    def finished(self) -> bool:
-        from .results import FINISHED_STATUSES
-
-        return self.status in FINISHED_STATUSES
-
-    @property
-    def times(self) -> dict[str, float | None]:
-        """T50, T90 and T100 [s] (None where not reached)."""
-        return {k: self.summary.get(f"t_evac_{k[1:]}") for k in ("T50", "T90", "T100")}
-
-    def density_at(self, t: float) -> tuple[float, dict, dict]:
-        """The density frame nearest to ``t`` [s]: (its time, point data, cell data)."""
-        if not self.density:
-            raise PedmeshError("the run wrote no density frames")
-        k = int(np.argmin([abs(ft - t) for ft, _, _ in self.density]))
-        return self.density[k]
+        return RunResult(None, self.summary, MemoryOutput(
+            evacuation=(ev[:, 0], ev[:, 1]), outflow=(t_out, flows, list(self.exit_names)),
+            tables=self.tables, density=self.density, pedestrians=self.pedestrians,
+            trajectories=traj, frame_rate=self.frame_rate, triangles=self.triangles))

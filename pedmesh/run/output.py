@@ -29,10 +29,7 @@ import errno
 import hashlib
 import io
 import json
-import math
-import numbers
 import os
-import re
 import sqlite3
 from pathlib import Path
 from typing import Any, Mapping, Sequence
@@ -44,36 +41,12 @@ from ..analysis.evacuation import evacuation_times, evacuation_times_from_curve
 from ..io.files import temporary_beside
 from ..errors import PedmeshError
 from ..io.vtk import PVDWriter
+from ..io import run_folder as F
 from ._rows import format_rows
-
-#: the files of a run folder and what each holds (``pedmesh run --help`` and the docs print
-#: this list); "(particle models)" marks those only particle models write
-OUTPUT_FILES: dict[str, str] = {
-    "summary.json": "model, status, n_initial, n_evacuated, t_evac_50/90/100 [s], steps, "
-                    "dt, wall time, every parameter used with its unit, the run's "
-                    "settings (room file hash, model, preset, overrides, t_end, mesh), and "
-                    "the crowd-safety measures (\"safety\", see docs/safety.md)",
-    "evacuation.csv": "t,evacuated (cumulative number out), every sample_interval (0.1 s)",
-    "outflow.csv": "t and the flow [ped/s] through each exit, the mean since the previous "
-                   "row (crossings, or the integrated boundary flux of a continuum model)",
-    "density.pvd": "density on the mesh [ped/m^2] (and velocity [m/s]), one frame per "
-                   "output_interval",
-    "pedestrians.pvd": "(particle models) positions with velocity, speed, local density",
-    "trajectories.txt": "(particle models) id frame x y [m] at the trajectory rate, for "
-                        "PedPy's load_trajectory_from_txt; a leaver's last row is on the exit",
-    "trajectories.sqlite": "(particle models) the same in JuPedSim's SQLite format (with the "
-                           "walkable area), for pedpy.load_trajectory_from_jupedsim_sqlite",
-    "exits.csv": "(particle models) id,exit,t of everyone who left",
-    "safety.vtu": "the crowd-safety maps per cell: peak density on 1 m^2 [ped/m^2] and its "
-                  "time, worst Fruin level of service (0-5 for A-F, walkway and queuing), "
-                  "time above 2, 4, 6 /m^2 [s], the social force model's max crowd "
-                  "pressure [1/s^2]; the numbers are in summary.json under \"safety\"",
-}
-
-try:  # POSIX advisory locks; elsewhere the process id in summary.json is checked
-    import fcntl
-except ImportError:  # pragma: no cover - not POSIX
-    fcntl = None
+from ..io.run_folder import (LOCK, OUTPUT_FILES, RUN_FILES, STATUSES, TEMP_FILES,
+                     BrokenSummaryError, RunFolderError, atomic_write, is_run_file,
+                     json_safe, load_summary, pid_alive, read_summary, remove_frames,
+                     run_status, summary_problem, take_lock)
 
 __all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "BrokenSummaryError",
            "OutputWriteError", "evacuation_times", "evacuation_times_from_curve",
@@ -81,34 +54,9 @@ __all__ = ["OUTPUT_FILES", "RunWriter", "RunFolderError", "BrokenSummaryError",
            "RUN_FILES", "TEMP_FILES", "STATUSES", "RESERVE_BYTES", "check_writable",
            "write_error", "temporary_beside"]
 
-#: pedmesh's own temporary files in a run folder (exact names); the frames' temporary
-#: files (``density_000012.part.vtu``) are inside ``density/`` and ``pedestrians/``
-TEMP_FILES = ("summary.json.part", "density.pvd.part", "pedestrians.pvd.part",
-              "safety.vtu.part", "trajectories.sqlite-journal")
-#: the exact names of everything a run writes into its directory: a rerun removes these
-#: and nothing else
-RUN_FILES = ("summary.json", "evacuation.csv", "outflow.csv", "outflow_kernel.csv",
-             "exits.csv", "density.pvd", "density", "pedestrians.pvd", "pedestrians",
-             "trajectories.txt", "trajectories.sqlite", "safety.vtu", ".lock") + TEMP_FILES
-LOCK = ".lock"
-#: a frame's temporary file in density/ or pedestrians/ (see pedmesh.io.vtk)
-_FRAME_TEMP = re.compile(r"(density|pedestrians)_\d{6,}\.part\.(vtu|vtp)")
-#: a frame of density/ or pedestrians/, or its temporary file
-_FRAME_FILE = re.compile(r"(density|pedestrians)_\d{6,}(\.part)?\.(vtu|vtp)")
 #: [bytes] disk space held in .lock while a run writes, given back to write the final
 #: summary on a full disk
 RESERVE_BYTES = 64 * 1024
-#: every status a summary can have
-STATUSES = ("running", "finished", "stopped at t_end", "interrupted", "failed")
-
-
-class RunFolderError(PedmeshError):
-    """The output directory cannot be used for this run (not a run, or in use)."""
-
-
-class BrokenSummaryError(RunFolderError):
-    """A run folder's summary.json cannot be read as a pedmesh summary (truncated, not a
-    JSON object, wrong-typed fields); the message names the file."""
 
 
 class OutputWriteError(PedmeshError, OSError):
@@ -187,180 +135,6 @@ def file_sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(path.name + ".part")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)  # never leave a .part behind (e.g. a full disk)
-        raise
-
-
-def _is_run_file(name: str) -> bool:
-    return name in RUN_FILES
-
-
-def _remove_frames(sub: Path) -> None:
-    """Remove the frames an earlier run wrote into its folder ``density/`` or
-    ``pedestrians/`` (named ``density_000012.vtu``, ``pedestrians_000012.vtp`` and their
-    ``.part`` forms), and the folder if nothing else is in it: a file of the user's there
-    stays."""
-    for e in sub.iterdir():
-        if _FRAME_FILE.fullmatch(e.name) and e.name.startswith(sub.name + "_") \
-                and (e.is_file() or e.is_symlink()):
-            e.unlink()
-    try:
-        sub.rmdir()
-    except OSError:  # not empty: the user's files stay, and so does the folder
-        pass
-
-
-_NUMBER = "a number"
-#: the fields pedmesh reads from a summary and what each must be (None is allowed for
-#: every field but the first three, which must be there)
-_SUMMARY_FIELDS: dict[str, str] = {
-    "pedmesh_version": "text", "model": "text", "status": "text",
-    "settings": "an object", "mesh": "an object", "parameters": "an object",
-    "exits": "an object", "units": "an object", "error": "text", "pid": "a whole number",
-    "t_end": _NUMBER, "t_stop": _NUMBER, "n_initial": _NUMBER, "n_evacuated": _NUMBER,
-    "t_evac_50": _NUMBER, "t_evac_90": _NUMBER, "t_evac_100": _NUMBER, "steps": _NUMBER,
-    "frames": _NUMBER, "wall_time_s": _NUMBER, "dt": _NUMBER,
-    "geometry": "text", "room": "text", "warnings": "a list", "safety": "an object",
-    "stairs": "an object",
-}
-#: the fields of the summary's objects that pedmesh reads, and what each must be
-_NESTED_FIELDS: dict[str, dict[str, str]] = {
-    "settings": {"overrides": "an object", "mesh_options": "an object",
-                 "model_options": "an object", "preset": "text", "room_sha256": "text"},
-    "safety": {"peak_density": "an object", "area_time_above": "an object",
-               "time_above": "an object", "level_of_service": "an object",
-               "crowd_pressure": "an object", "exits": "an object",
-               "clear_times": "an object", "levels": "an object", "error": "text"},
-}
-_REQUIRED = ("pedmesh_version", "model", "status")
-
-
-def _is_kind(value: Any, kind: str) -> bool:
-    if kind == "text":
-        return isinstance(value, str)
-    if kind == "an object":
-        return isinstance(value, dict)
-    if kind == "a list":
-        return isinstance(value, list)
-    if isinstance(value, bool):
-        return False
-    if kind == "a whole number":
-        return isinstance(value, int)
-    return isinstance(value, numbers.Real)
-
-
-def _json_kind(value: Any) -> str:
-    return {dict: "an object", list: "a list", str: "text", bool: "true/false",
-            type(None): "null"}.get(type(value), "a number")
-
-
-def summary_problem(data: Any) -> str | None:
-    """What is wrong with ``data`` as a pedmesh summary (None if nothing)."""
-    if not isinstance(data, dict):
-        kind = {list: "list", str: "string", bool: "true/false", type(None): "null"}.get(
-            type(data), "number")
-        return f"a JSON {kind}, not an object"
-    for key in _REQUIRED:
-        if key not in data:
-            return f"no '{key}'"
-    for key, kind in _SUMMARY_FIELDS.items():
-        value = data.get(key)
-        if value is None and key not in _REQUIRED:
-            continue
-        if not _is_kind(value, kind):
-            return f"'{key}' is {_json_kind(value)}, not {kind}"
-    for key, fields in _NESTED_FIELDS.items():
-        inner = data.get(key)
-        for sub, kind in fields.items() if isinstance(inner, dict) else ():
-            value = inner.get(sub)
-            if value is not None and not _is_kind(value, kind):
-                return f"'{key}'.'{sub}' is {_json_kind(value)}, not {kind}"
-    if isinstance(data.get("warnings"), list) and not all(
-            isinstance(w, str) for w in data["warnings"]):
-        return "'warnings' holds something that is not text"
-    if data["status"] not in STATUSES:
-        return f"unknown status {data['status']!r}"
-    return None
-
-
-def read_summary(d: str | Path) -> tuple[dict | None, str | None]:
-    """(summary, None) for a run folder with a good ``summary.json``, (None, what is wrong)
-    for a broken one, (None, None) where there is none."""
-    path = Path(d) / "summary.json"
-    if not path.exists():
-        return None, None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        return None, "not UTF-8 text"
-    except json.JSONDecodeError as exc:
-        return None, f"not valid JSON, truncated? {exc.msg}: line {exc.lineno} " \
-                     f"column {exc.colno}"
-    except OSError as exc:
-        return None, f"cannot be read: {exc.strerror or exc}"
-    problem = summary_problem(data)
-    return (None, problem) if problem else (data, None)
-
-
-def load_summary(d: str | Path) -> dict:
-    """The summary of the run in ``d``; :class:`BrokenSummaryError` naming the file if it
-    is broken, :class:`RunFolderError` if there is none."""
-    data, problem = read_summary(d)
-    if problem is not None:
-        raise BrokenSummaryError(f"{Path(d) / 'summary.json'}: not a pedmesh run summary "
-                                 f"({problem})")
-    if data is None:
-        raise RunFolderError(f"{d}: not a run directory (no summary.json)")
-    return data
-
-
-def _read_summary(d: Path) -> dict | None:
-    return read_summary(d)[0]
-
-
-def _lock_is_held(d: Path) -> bool | None:
-    """Whether another process holds the directory's lock (None where locks are unknown)."""
-    if fcntl is None or not (d / LOCK).exists():
-        return None
-    with open(d / LOCK, "a+") as f:
-        try:
-            fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            return True
-        fcntl.flock(f.fileno(), fcntl.LOCK_UN)
-        return False
-
-
-def _pid_alive(pid: Any) -> bool:
-    try:
-        os.kill(int(pid), 0)
-    except (OSError, TypeError, ValueError, OverflowError):
-        return False
-    return True
-
-
-def run_status(path: str | Path, summary: Mapping[str, Any] | None = None) -> str | None:
-    """The status of the run in ``path``: as recorded, except that a ``running`` run whose
-    process is gone (its lock free, or its process id dead) reads as ``interrupted``.
-    ``None`` if ``path`` holds no run."""
-    d = Path(path)
-    s = _read_summary(d) if summary is None else summary
-    if s is None:
-        return None
-    status = s.get("status")
-    if status == "running":
-        held = _lock_is_held(d)
-        if held is False or (held is None and not _pid_alive(s.get("pid"))):
-            return "interrupted"
-    return status
-
-
 def claim_run_dir(out_dir: str | Path):
     """Make ``out_dir`` this run's: refuse a non-empty directory that is not a pedmesh run
     and one another run is writing into; remove an earlier run's files; take the lock.
@@ -370,18 +144,14 @@ def claim_run_dir(out_dir: str | Path):
         raise RunFolderError(f"{d}: exists and is not a directory")
     d.mkdir(parents=True, exist_ok=True)
     had_lock = (d / LOCK).exists()
-    lock = open(d / LOCK, "a+")
-    if fcntl is not None:
-        try:
-            fcntl.flock(lock.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock.close()
-            raise RunFolderError(f"{d}: another pedmesh run is writing into this directory; "
-                                 "wait for it or choose another --out") from None
+    lock = take_lock(d)
+    if lock is None:
+        raise RunFolderError(f"{d}: another pedmesh run is writing into this directory; "
+                             "wait for it or choose another --out")
     try:
         entries = [e for e in d.iterdir() if e.name != LOCK]
         prev, problem = read_summary(d)
-        others = sorted(e.name for e in entries if not _is_run_file(e.name))
+        others = sorted(e.name for e in entries if not is_run_file(e.name))
         if entries and prev is None and problem is None:
             raise RunFolderError(f"{d}: not empty and not a pedmesh run directory (it holds "
                                  f"'{(others or [entries[0].name])[0]}'); choose another "
@@ -390,17 +160,17 @@ def claim_run_dir(out_dir: str | Path):
             # a broken summary among other files: not provably pedmesh's
             what = f"the folder also holds '{others[0]}'" if others else \
                 "nothing else of a pedmesh run is there"
-            raise BrokenSummaryError(f"{d / 'summary.json'}: not a pedmesh run summary "
+            raise BrokenSummaryError(f"{d / F.SUMMARY}: not a pedmesh run summary "
                                      f"({problem}) and {what}; choose another --out or "
                                      "remove the folder")
-        if prev is not None and fcntl is None and prev.get("status") == "running" \
-                and prev.get("pid") != os.getpid() and _pid_alive(prev.get("pid")):
+        if prev is not None and not F.locks_known() and prev.get("status") == "running" \
+                and prev.get("pid") != os.getpid() and pid_alive(prev.get("pid")):
             raise RunFolderError(f"{d}: another pedmesh run (process {prev.get('pid')}) is "
                                  "writing into this directory")
         for e in entries:  # the earlier run's outputs go; other files stay
-            if _is_run_file(e.name):
+            if is_run_file(e.name):
                 if e.is_dir() and not e.is_symlink():
-                    _remove_frames(e)
+                    remove_frames(e)
                 else:
                     e.unlink()
     except BaseException:
@@ -409,22 +179,6 @@ def claim_run_dir(out_dir: str | Path):
             (d / LOCK).unlink(missing_ok=True)
         raise
     return lock
-
-
-def _clean(obj: Any) -> Any:
-    """JSON-safe copy: numpy scalars to Python, NaN/inf to None."""
-    if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        f = float(obj)
-        return f if math.isfinite(f) else None
-    return obj
 
 
 def _csv_line(fields: Sequence[Any]) -> str:
@@ -487,7 +241,7 @@ class RunWriter:
         self.header = dict(header)
         self.header.setdefault("pedmesh_version", __version__)
         self.header["pid"] = os.getpid()
-        self._summary_path = self.dir / "summary.json"
+        self._summary_path = self.dir / F.SUMMARY
         self._evac = self._outflow = self._traj = None
         self._sql: sqlite3.Connection | None = None
         self._extra: dict = {}
@@ -526,11 +280,11 @@ class RunWriter:
         for name in TEMP_FILES:
             if name.endswith(".part"):
                 (self.dir / name).unlink(missing_ok=True)
-        for sub in ("density", "pedestrians"):
+        for sub in (F.DENSITY_DIR, F.PEDESTRIANS_DIR):
             d = self.dir / sub
             if d.is_dir():
                 for e in d.iterdir():
-                    if _FRAME_TEMP.fullmatch(e.name):
+                    if F.FRAME_TEMP.fullmatch(e.name):
                         e.unlink(missing_ok=True)
 
     def start(self, header: Mapping[str, Any] | None = None) -> None:
@@ -539,8 +293,8 @@ class RunWriter:
         if header:
             self.header.update(header)
             self._write_summary({**self.header, "status": "running"})
-        self._evac = self._open("evacuation.csv", "t,evacuated\n")
-        self._outflow = self._open("outflow.csv", _csv_line(["t", *self.exit_names]))
+        self._evac = self._open(F.EVACUATION, "t,evacuated\n")
+        self._outflow = self._open(F.OUTFLOW, _csv_line(["t", *self.exit_names]))
 
     # ------------------------------------------------------------------ pieces
     def _open(self, name: str, header: str):
@@ -568,7 +322,7 @@ class RunWriter:
 
     def _write_summary(self, data: Mapping[str, Any]) -> None:
         try:
-            _atomic_write(self._summary_path, json.dumps(_clean(data), indent=2) + "\n")
+            atomic_write(self._summary_path, json.dumps(json_safe(data), indent=2) + "\n")
         except OSError as exc:
             raise _write_error(self._summary_path, exc) from None
 
@@ -605,7 +359,7 @@ class RunWriter:
 
     def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
         """Add a frame to density.pvd."""
-        path = self.dir / "density.pvd"
+        path = self.dir / F.DENSITY_PVD
         try:
             if self._density is None:
                 self._density = PVDWriter(path)
@@ -616,7 +370,7 @@ class RunWriter:
     def pedestrian_frame(self, t: float, points: np.ndarray,
                          data: Mapping[str, np.ndarray]) -> None:
         """Add a frame to pedestrians.pvd."""
-        path = self.dir / "pedestrians.pvd"
+        path = self.dir / F.PEDESTRIANS_PVD
         try:
             if self._peds is None:
                 self._peds = PVDWriter(path)
@@ -643,14 +397,14 @@ class RunWriter:
         building = z is not None
         if self._traj is None:
             self._traj = self._open(
-                "trajectories.txt",
+                F.TRAJECTORIES_TXT,
                 f"# pedmesh {__version__}: {description}\n"
                 f"# framerate: {frame_rate:g} fps (frame k is at t = k / framerate s)\n"
                 + ("# unit: x/m, y/m, z/m (plan coordinates and height in metres; place: "
                    "the level or stair, a space, tab, newline or % written %XX)\n"
                    "# id frame x y z place\n" if building else
                    "# unit: x/m, y/m (coordinates in metres)\n# id frame x y\n"))
-            sql_path = self.dir / "trajectories.sqlite"
+            sql_path = self.dir / F.TRAJECTORIES_SQLITE
             try:
                 self._sql_open(frame_rate, walkable_wkt, building)
             except (OSError, sqlite3.Error) as exc:
@@ -678,7 +432,7 @@ class RunWriter:
             con.execute("INSERT INTO frame_data VALUES (?, ?)", (frame, self._geo_hash))
             con.commit()
         except (OSError, sqlite3.Error) as exc:
-            raise _write_error(self.dir / "trajectories.sqlite", exc) from None
+            raise _write_error(self.dir / F.TRAJECTORIES_SQLITE, exc) from None
 
     def _sql_open(self, frame_rate: float, walkable_wkt: str | None,
                   building: bool = False) -> None:
@@ -687,7 +441,7 @@ class RunWriter:
         frame_data naming each frame's geometry), which PedPy 1.x and JuPedSim read."""
         import shapely
 
-        con = sqlite3.connect(self.dir / "trajectories.sqlite", check_same_thread=False)
+        con = sqlite3.connect(self.dir / F.TRAJECTORIES_SQLITE, check_same_thread=False)
         con.execute("PRAGMA synchronous=OFF")  # survives a killed process; no fsync per frame
         con.execute("CREATE TABLE trajectory_data (frame INTEGER NOT NULL, id INTEGER NOT NULL,"
                     " pos_x REAL NOT NULL, pos_y REAL NOT NULL, ori_x REAL NOT NULL,"
@@ -735,7 +489,7 @@ class RunWriter:
             try:
                 self._sql.close()
             except sqlite3.Error as exc:
-                first = first or _write_error(self.dir / "trajectories.sqlite", exc)
+                first = first or _write_error(self.dir / F.TRAJECTORIES_SQLITE, exc)
             self._sql = None
         if first is not None:
             raise first
@@ -764,4 +518,4 @@ class RunWriter:
         finally:
             self._release_reserve()
             self._lock.close()
-        return _clean(data)
+        return json_safe(data)

@@ -10,7 +10,6 @@ memory (:class:`~pedmesh.run.memory.MemoryWriter`). The shape of the record is
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable
@@ -21,13 +20,15 @@ from ..analysis import safety as S
 from ..errors import PedmeshError
 from ..parameters import DEFAULTS as D
 from ..geometry.site import is_building
-from .tables import crossings_from_rows, read_number_table, read_rows
+from ..io import run_folder as F
+from ..io.run_folder import good_summary, json_safe
+from .results import RunResult
 
 __all__ = ["safety_measures", "safety_from_memory", "write_safety_vtu", "SAFETY_VTU",
            "SAFETY_KEYS", "LOS_SCALE"]
 
 #: the file of the per-cell safety maps in a run folder
-SAFETY_VTU = "safety.vtu"
+SAFETY_VTU = F.SAFETY_VTU
 
 #: the keys of summary.json's "safety" record (or {"error": "..."} if it failed)
 SAFETY_KEYS = ("peak_density", "area_time_above", "area_time_unit", "time_above",
@@ -75,75 +76,57 @@ def _cell_density(particle: bool, triangles: np.ndarray, field: np.ndarray) -> n
     return np.asarray(field, float)
 
 
-def _from_folder(d: Path, mesh, summary: dict) -> _RunData:
-    from ..io.vtk import read_pvd_index, read_vtp, read_vtu
+def _from_result(res, mesh, R: float) -> _RunData:
+    """What the measures need of a run (a :class:`~pedmesh.run.results.RunResult`, in
+    memory or read from its folder frame by frame)."""
+    from ..io.vtk import read_vtp, read_vtu
 
-    if not (d / "density.pvd").exists():
-        raise PedmeshError(f"{d}: no density.pvd")
-    frames = read_pvd_index(d / "density.pvd")
+    where = res.path if res.path is not None else "the run"
+    if res.path is not None and not res.file(F.DENSITY_PVD).exists():
+        raise PedmeshError(f"{where}: no {F.DENSITY_PVD}")
+    frames = res.density_frames
     if not frames:
-        raise PedmeshError(f"{d}: density.pvd lists no frames")
+        raise PedmeshError(f"{where}: no density frames" if res.path is None else
+                           f"{res.file(F.DENSITY_PVD)} lists no frames")
     ts, dens = [], []
     points = triangles = None
     particle = False
     for k, (t, f) in enumerate(frames):
-        pts, tri, pd, cd = read_vtu(f, point_arrays=("density",), cell_arrays=("rho",))
+        if f is None:  # (in memory: the fields as the model gave them, on the run's mesh)
+            _, pd, cd = res.density[k]
+            pts, tri = np.asarray(mesh.points), np.asarray(mesh.triangles)
+        else:
+            pts, tri, pd, cd = read_vtu(f, point_arrays=("density",), cell_arrays=("rho",))
         if k == 0:
             points, triangles = pts[:, :2], tri
             particle = "rho" not in cd
         if particle and "density" not in pd:
-            raise PedmeshError(f"{f}: neither a cell field 'rho' nor a point field 'density'")
+            raise PedmeshError(f"{f or where}: neither a cell field 'rho' nor a point field "
+                               "'density'")
         ts.append(t)
         dens.append(_cell_density(particle, triangles, pd["density"] if particle
                                   else cd["rho"]))
     if mesh is not None:
         if mesh.n_triangles != len(triangles):
-            raise PedmeshError(f"{d}: the frames have {len(triangles)} cells, the mesh "
+            raise PedmeshError(f"{where}: the frames have {len(triangles)} cells, the mesh "
                                f"{mesh.n_triangles}")
         points, triangles = np.asarray(mesh.points)[:, :2], np.asarray(mesh.triangles)
     peds = None
-    if particle and (d / "pedestrians.pvd").exists():
-        pframes = read_pvd_index(d / "pedestrians.pvd")
+    if particle and res.pedestrian_frames:
+        pframes = res.pedestrian_frames
 
         def peds():
-            for t, f in pframes:
-                pts, data = read_vtp(f, arrays=("velocity",))
-                yield t, pts[:, :2], _velocities(data, len(pts))
+            for k, (t, f) in enumerate(pframes):
+                if f is None:
+                    _, pts, data = res.pedestrians[k]
+                else:
+                    pts, data = read_vtp(f, arrays=("velocity",))
+                yield t, np.asarray(pts)[:, :2], _velocities(data, len(pts))
 
-    names: list[str] = []
-    ot, of = np.zeros(0), np.zeros((0, 0))
-    if (d / "outflow.csv").exists():
-        h, data = read_number_table(d / "outflow.csv")
-        names, ot, of = h[1:], data[:, 0], data[:, 1:]
-    crossings = None
-    if particle and (d / "exits.csv").exists():
-        crossings = crossings_from_rows(read_rows(d / "exits.csv")[1], d / "exits.csv")
-    R = float((summary.get("parameters") or {}).get("R") or D["R"])
+    ot, of, names = res.outflow
+    crossings = res.crossings if particle and res.has_table(F.EXITS) else None
     return _RunData(np.array(ts, float), points, triangles, np.array(dens), particle, peds,
                     list(names), crossings, (ot, of), R)
-
-
-def _from_memory(writer, mesh, R: float) -> _RunData:
-    if not writer.density:
-        raise PedmeshError("the run wrote no density frames")
-    particle = "rho" not in writer.density[0][2]
-    tri = np.asarray(mesh.triangles)
-    dens = np.array([_cell_density(particle, tri, pd["density"] if particle else cd["rho"])
-                     for _, pd, cd in writer.density])
-    peds = None
-    if particle and writer.pedestrians:
-        def peds():
-            for t, pos, data in writer.pedestrians:
-                yield t, np.asarray(pos)[:, :2], _velocities(data, len(pos))
-    rows = writer.outflow_rows
-    ot = np.array([r[0] for r in rows], float)
-    of = np.array([r[1] for r in rows], float).reshape(len(rows), len(writer.exit_names))
-    crossings = None
-    if particle and "exits.csv" in writer.tables:
-        crossings = crossings_from_rows(writer.tables["exits.csv"][1])
-    return _RunData(np.array([f[0] for f in writer.density], float),
-                    np.asarray(mesh.points)[:, :2], tri, dens, particle, peds,
-                    list(writer.exit_names), crossings, (ot, of), R)
 
 
 def _room_of(summary: dict, d: Path | None):
@@ -330,22 +313,20 @@ def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
     :class:`~pedmesh.errors.PedmeshError` if the folder has no density frames.
     """
     d = Path(run_dir)
-    try:
-        summary = json.loads((d / "summary.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        summary = {}
+    summary = good_summary(d) or {}
     if room is None:
         room = _room_of(summary, d)
     if n_initial is None and "positions" not in (
             (summary.get("settings") or {}).get("model_options") or {}):
         n_initial = summary.get("n_initial")  # (not for a run given its own positions)
-    data = _from_folder(d, mesh, summary)
+    R = float((summary.get("parameters") or {}).get("R") or D["R"])
+    data = _from_result(RunResult(d, summary), mesh, R)
     record, fields = _compute(data, room, n_initial, mesh)
     if write_fields:  # (a building's on its surface in 3-D, over its density frames)
         on = mesh if mesh is not None and is_building(room) else data
-        write_safety_vtu(d / SAFETY_VTU, points=on.points, triangles=on.triangles,
+        write_safety_vtu(d / F.SAFETY_VTU, points=on.points, triangles=on.triangles,
                          fields=fields)
-    return _clean(record)
+    return json_safe(record)
 
 
 def safety_from_memory(writer, room, mesh, *, n_initial: float | None = None,
@@ -354,11 +335,5 @@ def safety_from_memory(writer, room, mesh, *, n_initial: float | None = None,
     :class:`~pedmesh.run.memory.MemoryWriter`) on ``mesh``."""
     if R is None:
         R = float((writer.header.get("parameters") or {}).get("R") or D["R"])
-    record, _ = _compute(_from_memory(writer, mesh, R), room, n_initial, mesh)
-    return _clean(record)
-
-
-def _clean(record: dict) -> dict:
-    from .output import _clean as clean
-
-    return clean(record)
+    record, _ = _compute(_from_result(writer.result(), mesh, R), room, n_initial, mesh)
+    return json_safe(record)

@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import PedmeshError
+from ..io.run_folder import EXITS
 
 __all__ = ["BrokenTableError", "read_number_table", "read_rows", "crossings_from_rows"]
 
@@ -81,7 +82,7 @@ def _ends_with_newline(path: Path) -> bool:
         return f.read(1) == b"\n"
 
 
-def crossings_from_rows(rows: Sequence[Sequence[str]], path: str | Path = "exits.csv"):
+def crossings_from_rows(rows: Sequence[Sequence[str]], path: str | Path = EXITS):
     """(ids, exit names, times [s]) of the rows ``id, exit, t`` of exits.csv (fields, as
     :func:`read_rows` returns them or a memory run keeps them)."""
     ids, names, times = [], [], []

@@ -28,8 +28,9 @@ def test_simulate_in_memory_matches_a_run_folder(geometries_dir, tmp_path):
     assert n[-1] == pytest.approx(mem.summary["n_evacuated"])
     # the frames: every output interval, the cell density conserving the crowd
     assert len(mem.density) == disk.summary["frames"]
-    ft, _, cells = mem.density_at(0.0)
-    assert ft == 0.0 and cells["rho"].min() >= 0.0
+    ft, rho, vel = mem.density_at(0.0)
+    assert ft == 0.0 and rho.min() >= 0.0 and vel.shape == (len(rho), 2)
+    assert mem.density_fields_at(0.0)[2]["rho"].min() >= 0.0
 
 
 def test_simulate_keeps_the_particle_models_trajectories(geometries_dir):

@@ -93,14 +93,14 @@ class FullDisk:
         self.full = False
         self.used: int | None = None
         self.folder: Path | None = None
-        original = output_module._atomic_write
+        original = output_module.atomic_write
 
         def atomic_write(path: Path, text: str) -> None:
             if self.full and self._used() >= self.used:
                 raise OSError(errno.ENOSPC, ENOSPC_TEXT)  # as write() reports it: no name
             original(path, text)
 
-        monkeypatch.setattr(output_module, "_atomic_write", atomic_write)
+        monkeypatch.setattr(output_module, "atomic_write", atomic_write)
 
     def _used(self) -> int:
         return sum(p.stat().st_size for p in self.folder.rglob("*")

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import ParameterError
+from ...io.run_folder import EXITS, OUTFLOW_KERNEL
 from ...analysis.evacuation import evacuation_times
 
 __all__ = ["SFMRun"]
@@ -205,7 +206,7 @@ class SFMRun:
             new = np.flatnonzero(np.isfinite(sim.exit_time) & ~self._exits_out)
             new = new[np.argsort(sim.exit_time[new], kind="stable")]
             names = self.mesh.exit_names
-            writer.append_rows("exits.csv", ["id", "exit", "t"],
+            writer.append_rows(EXITS, ["id", "exit", "t"],
                                [[int(i), names[sim.exit_id[i]], f"{sim.exit_time[i]:.4f}"]
                                 for i in new])
             self._exits_out[new] = True
@@ -273,7 +274,7 @@ def _kernel_outflow_row(writer, outflow, names, t: float, positions: np.ndarray,
     [ped/s] per exit (:meth:`SFMRun.kernel_outflow`)."""
     f = outflow(positions, velocities)
     # rows as fields: the writer quotes exit names with commas or newlines
-    writer.append_rows("outflow_kernel.csv", ["t", *names],
+    writer.append_rows(OUTFLOW_KERNEL, ["t", *names],
                        [[f"{t:.4f}", *(f"{v:.6g}" for v in f)]])
 
 
