@@ -2,8 +2,9 @@
 folder (:class:`Run`, its density frames :class:`Frames`), an ensemble folder
 (:class:`Ensemble`) and the folders of one report (:func:`load_folders`).
 
-The classes that read a run folder are kept together here so that a shared reader of run
-folders can take their place."""
+A run folder's files are read through :class:`~pedmesh.run.results.RunResult`, the one
+reader of run folders; :class:`Run` adds what the report needs of them (its room file, the
+frames laid out for drawing, notes on what is missing)."""
 
 from __future__ import annotations
 
@@ -18,8 +19,7 @@ import numpy as np
 
 from ..errors import PedmeshError
 from ..io.run_folder import (COMPARISON_CSV, DENSITY_DIR, DENSITY_PVD, ENSEMBLE_CSV,
-                             ENSEMBLE_JSON, ENSEMBLE_MEMBERS, EVACUATION, EXITS,
-                             PEDESTRIANS_PVD, SUMMARY)
+                             ENSEMBLE_JSON, ENSEMBLE_MEMBERS, EVACUATION, EXITS, SUMMARY)
 from .text import float_or_none, is_num, number
 
 __all__ = ["ReportError", "folder_kind", "Run", "Frames", "Ensemble", "load_folders"]
@@ -163,20 +163,17 @@ class Run:
     @cached_property
     def exit_passages(self) -> dict[str, list[float]]:
         """Exit times [s] by exit of everyone who left (particle models; exits.csv)."""
-        p = self.path / EXITS
         out: dict[str, list[float]] = {}
-        if not p.exists():
+        if not self.result.has_table(EXITS):
             return out
-        from ..run.tables import crossings_from_rows, read_rows
-
-        _, names, times = crossings_from_rows(read_rows(p)[1], p)
+        _, names, times = self.result.crossings
         for name, t in zip(names, times):
             out.setdefault(name, []).append(float(t))
         return out
 
     @cached_property
     def frames(self) -> "Frames | None":
-        fr = Frames.read(self.path)
+        fr = Frames.read(self.result)
         if fr is None:
             self.notes.append("no density frames were saved (density.pvd missing or empty)")
         elif fr.z_span > 0:  # a building: one panel per level (pedmesh.run.layout)
@@ -194,10 +191,7 @@ class Run:
 
     @cached_property
     def ped_frames(self) -> list[tuple[float, Path]]:
-        from ..io.vtk import read_pvd_index
-
-        p = self.path / PEDESTRIANS_PVD
-        return read_pvd_index(p) if p.exists() else []
+        return self.result.pedestrian_frames
 
     def positions_at(self, t: float) -> np.ndarray | None:
         """Pedestrian positions [m] of the saved frame at ``t`` (particle models), None if
@@ -261,11 +255,13 @@ class Frames:
     _cache: dict = field(default_factory=dict, repr=False)
 
     @classmethod
-    def read(cls, run_dir: Path) -> "Frames | None":
-        """The frames of ``run_dir``; None if the run saved none; a one-line error naming
-        the file if its index or a frame is not whole or cannot be read."""
-        from ..io.vtk import check_frames_whole, frame_density, read_pvd_index, read_vtu
+    def read(cls, result) -> "Frames | None":
+        """The frames of a run folder (its :class:`~pedmesh.run.results.RunResult`); None
+        if the run saved none; a one-line error naming the file if its index or a frame is
+        not whole or cannot be read."""
+        from ..io.vtk import check_frames_whole, frame_density, read_vtu
 
+        run_dir = result.path
         p = run_dir / DENSITY_PVD
         saved = sorted((run_dir / DENSITY_DIR).glob("density_*.vtu")) \
             if (run_dir / DENSITY_DIR).is_dir() else []
@@ -274,7 +270,7 @@ class Frames:
                 raise ReportError(f"{p}: missing, though density/ holds {len(saved)} frames "
                                   "(the index of the frames is lost: rerun the run)")
             return None
-        index = read_pvd_index(p)
+        index = result.density_frames
         if not index:
             if saved:
                 raise ReportError(f"{p}: lists no frames, though density/ holds "
