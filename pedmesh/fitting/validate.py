@@ -70,6 +70,7 @@ import numpy as np
 import pedmesh.validation as V
 from pedmesh.geometry import Exit, MeasurementLine, Room, StartArea
 from pedmesh.io import load_room
+from pedmesh.io.run_folder import json_safe
 from pedmesh.mesh import triangulate
 
 #: the source checkout (pedmesh/fitting/ -> the repository): its rooms, next to its data
@@ -650,24 +651,10 @@ def _md_table(head, rows) -> str:
     return "\n".join(lines)
 
 
-def _jsonable(obj):
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        return float(obj) if math.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
-
-
 def write_report(results: Mapping[str, Any], out_dir: Path) -> None:
     """``validation.json`` and ``validation.md`` in ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "validation.json").write_text(json.dumps(_jsonable(results), indent=1) + "\n")
+    (out_dir / "validation.json").write_text(json.dumps(json_safe(results), indent=1) + "\n")
     md = [(f"# SFM validation (preset {results['preset'] or 'default'}, overrides "
            f"{results['overrides'] or 'none'})"), ""]
     for title, head, rows in tables(results):

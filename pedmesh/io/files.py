@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Callable
 
-__all__ = ["temporary_beside", "write_whole"]
+__all__ = ["temporary_beside", "write_whole", "write_through_part"]
 
 
 def temporary_beside(path: str | os.PathLike) -> Path:
@@ -39,5 +40,21 @@ def write_whole(path: str | os.PathLike, data: str | bytes) -> Path:
     except OSError:
         if tmp is not None:
             tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def write_through_part(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    """``write(path.part)``, then rename it to ``path``: the file is the old one or the new
+    one, never half of it; a failed write (or a Ctrl-C) removes the ``.part``. For the
+    files whose temporary name is part of their folder's contract (a run folder's
+    ``summary.json.part``, :data:`pedmesh.io.run_folder.TEMP_FILES`)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)  # never leave a .part behind (e.g. a full disk)
         raise
     return path

@@ -32,6 +32,7 @@ from typing import Any, Mapping, Protocol, Sequence
 import numpy as np
 
 from ..errors import PedmeshError
+from .files import write_through_part
 
 try:  # POSIX advisory locks; elsewhere the process id in summary.json is checked
     import fcntl
@@ -388,13 +389,7 @@ def remove_frames(sub: Path) -> None:
 def atomic_write(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through ``path.part``: the file is the old one or the new
     one, never half of it (the ``.part`` is removed if the write fails)."""
-    tmp = path.with_name(path.name + ".part")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)  # never leave a .part behind (e.g. a full disk)
-        raise
+    write_through_part(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def json_safe(obj: Any) -> Any:

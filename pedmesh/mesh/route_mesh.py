@@ -27,7 +27,7 @@ import numpy as np
 import shapely
 
 from ..errors import MeshError
-from .triangulate import (MAX_CELLS, MIN_ANGLE, WALL_GROWTH, _edge_to_area,
+from .triangulate import (MAX_CELLS, MIN_ANGLE, WALL_GROWTH, _edge_to_area, ring_turns,
                           _nearest_distance, _segments, estimate_cells, triangulate)
 from .triangle_mesh import room_fingerprint
 
@@ -54,11 +54,7 @@ def reflex_corners(room, min_turn: float = REFLEX_TURN) -> np.ndarray:
     poly = shapely.geometry.polygon.orient(room.walkable, 1.0)  # outline ccw, holes cw
     out = []
     for ring in [poly.exterior, *poly.interiors]:
-        c = np.asarray(ring.coords)[:-1]
-        a = c - np.roll(c, 1, axis=0)
-        b = np.roll(c, -1, axis=0) - c
-        turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
-                                     np.einsum("ij,ij->i", a, b)))
+        c, turn = ring_turns(ring)
         # the walkable area lies to the left of every ring: a right turn is a reflex corner
         out.append(c[turn < -min_turn])
     return np.concatenate(out) if out else np.zeros((0, 2))

@@ -117,17 +117,23 @@ def _edge_to_area(h):
     return np.sqrt(3.0) / 4.0 * h * h
 
 
+def ring_turns(ring) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (c, 2) [m], turn [degrees]) of a closed shapely ring: the signed angle
+    the boundary turns by at each vertex (positive to the left)."""
+    c = np.asarray(ring.coords)[:-1]
+    a = c - np.roll(c, 1, axis=0)
+    b = np.roll(c, -1, axis=0) - c
+    return c, np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+                                    np.einsum("ij,ij->i", a, b)))
+
+
 def _corners(room, min_turn: float = CORNER_TURN) -> np.ndarray:
     """(c, 2) boundary vertices [m] (outline and obstacles) where the boundary turns by more
     than ``min_turn`` degrees."""
     out = []
     poly = room.walkable
     for ring in [poly.exterior, *poly.interiors]:
-        c = np.asarray(ring.coords)[:-1]
-        a = c - np.roll(c, 1, axis=0)
-        b = np.roll(c, -1, axis=0) - c
-        turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
-                                     np.einsum("ij,ij->i", a, b)))
+        c, turn = ring_turns(ring)
         out.append(c[np.abs(turn) > min_turn])
     return np.concatenate(out) if out else np.zeros((0, 2))
 
