@@ -225,3 +225,33 @@ def test_a_first_run_says_it_compiles(tmp_path, geometries_dir, capsys, monkeypa
     assert main(["run", room, "--out", str(tmp_path / "b"), "--t-end", "1"]) == 0
     err = capsys.readouterr().err
     assert err.startswith("pedmesh: compiling the numerical kernels")
+
+
+def test_a_room_file_pins_the_seed(tmp_path, geometries_dir):
+    """Issue 46: `"seed"` in a room file is the seed of its particle runs unless --seed
+    says otherwise; the continuum models ignore it."""
+    import json
+
+    data = json.loads((geometries_dir / "corridor_bottleneck.json").read_text())
+    room = tmp_path / "room.json"
+
+    def run(seed_in_file, args, name):
+        room.write_text(json.dumps({**data, **({"seed": seed_in_file}
+                                               if seed_in_file is not None else {})}))
+        out = tmp_path / name
+        assert main(["run", str(room), "--out", str(out), "--t-end", "2", "-q", *args]) == 0
+        s = json.loads((out / "summary.json").read_text())
+        return s["parameters"]["seed"], (out / "trajectories.txt").read_text()
+
+    seed, pinned = run(3, [], "pinned")
+    assert seed == 3
+    assert run(None, ["--seed", "3"], "given")[1] == pinned  # the same realisation
+    told = run(3, ["--seed", "0"], "told")
+    assert told[0] == 0 and told[1] != pinned  # --seed wins
+    assert run(None, [], "default")[0] is None  # (no seed anywhere: the plain lattice)
+    room.write_text(json.dumps({**data, "seed": 3}))
+    assert main(["run", str(room), "--model", "eos", "--out", str(tmp_path / "eos"),
+                 "--t-end", "1", "-q"]) == 0
+    bad = {**data, "seed": -1}
+    room.write_text(json.dumps(bad))
+    assert main(["run", str(room), "--out", str(tmp_path / "bad"), "-q"]) == 2

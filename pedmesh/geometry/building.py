@@ -34,6 +34,7 @@ from shapely.geometry import LinearRing, LineString, Polygon
 
 from ..errors import GeometryError
 from .room import (_COORDINATE_LIMITS, MAX_COORDINATE, Points, Room, _check_name, _check_preset,
+                   _check_seed,
                    _coerce_points, _is_real, _polygon)
 from .tolerances import EXIT_TOLERANCE
 
@@ -174,6 +175,8 @@ class Building:
     name: str = "building"
     description: str = ""
     preset: str | None = None
+    #: the random seed of its particle model runs unless told otherwise (see Room.seed)
+    seed: int | None = None
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -192,6 +195,7 @@ class Building:
                 raise GeometryError(f"exit name '{n}' is used on more than one level (exit "
                                     "names must be unique in a building)")
         _check_preset(self.preset)
+        _check_seed(self.seed)
         known = set(exits)
         for lv in self.levels:
             for a in lv.room.start_areas:

@@ -147,6 +147,15 @@ def _polygon(points: Points, label: str) -> Polygon:
     return poly
 
 
+def _check_seed(seed: Any) -> None:
+    """A one-line error unless ``seed`` (a room's or a building's) is None or a whole
+    number from 0 to 2**32 - 1 (numpy's seeds)."""
+    if seed is None:
+        return
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
+        raise GeometryError(f"seed must be a whole number from 0 to 4294967295, got {seed!r}")
+
+
 def _check_preset(preset: Any) -> None:
     """A one-line error unless ``preset`` (a room's or a building's) is None or a preset's
     name."""
@@ -593,6 +602,10 @@ class Room:
     preset
         The parameter preset runs of this room use unless told otherwise
         (:mod:`pedmesh.presets`; None: the default).
+    seed
+        The random seed of its particle model runs unless told otherwise (``--seed``,
+        ``seed=``): which realisation of the start areas' draws and placement (None: the
+        plain lattice, the draws with seed 0).
     exits_elsewhere
         Names of exits outside this room that its start areas' ``exits`` may name: on a
         level of a building, the other levels' exits (set by the building's loader; the
@@ -613,6 +626,7 @@ class Room:
     name: str = "room"
     description: str = ""
     preset: str | None = None
+    seed: int | None = None
     exits_elsewhere: tuple[str, ...] = field(default=(), repr=False, compare=False)
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
@@ -624,6 +638,7 @@ class Room:
         if not isinstance(self.description, str):
             raise GeometryError(f"room description must be a string, got {self.description!r}")
         _check_preset(self.preset)
+        _check_seed(self.seed)
         set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         set_("outline", _coerce_points(self.outline, "room outline", ring=True))
         set_("obstacles", _coerce_elements(self.obstacles, Obstacle, "obstacle"))

@@ -287,6 +287,8 @@ def plan_run(room, mesh, model: str, *, overrides: Mapping[str, Any] | None = No
     check_steps(t_end, parameters, max_steps)
     model_options = dict(model_options or {})
     check_options(entry, model_options)
+    if site is not None and site.seed is not None and "seed" in entry.options:
+        model_options.setdefault("seed", site.seed)  # (the room file's, unless told one)
     header = {
         "model": entry.name,
         "geometry": geometry,

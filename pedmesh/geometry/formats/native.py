@@ -9,6 +9,7 @@ Schema (keys not listed are an error)::
       "description": "free text",        # optional
       "units": "m",                      # optional; only "m" is accepted
       "preset": "paper",                 # optional: the parameter preset of its runs
+      "seed": 7,                         # optional: the particle models' random seed
       "outline": [[x, y], ...],          # required: outer wall polygon
       "obstacles": [{"name": "pillar", "polygon": [[x, y], ...]}],
       "exits": [{"name": "door", "polyline": [[x, y], [x, y], ...]}],
@@ -61,7 +62,7 @@ FORMAT_VERSION = 1
 
 _TOP_KEYS = {
     "format", "version", "name", "description", "units", "outline", "obstacles", "exits",
-    "start_areas", "measurement_lines", "measurement_areas", "preset",
+    "start_areas", "measurement_lines", "measurement_areas", "preset", "seed",
 }
 # list key -> (element class, label, coordinate key, optional keys)
 _ELEMENTS: dict[str, tuple[type, str, str, tuple[str, ...]]] = {
@@ -112,7 +113,7 @@ def _room(data: dict, source: str, exits_elsewhere: tuple[str, ...] = ()) -> Roo
     if "outline" not in data:
         raise RoomFileError(f"{source}: missing required key 'outline' (the room's wall polygon)")
     kwargs: dict[str, Any] = {"outline": data["outline"], "exits_elsewhere": exits_elsewhere}
-    for key in ("name", "description", "preset"):
+    for key in ("name", "description", "preset", "seed"):
         if key in data:
             kwargs[key] = data[key]
     for key, (cls, label, coord_key, optional) in _ELEMENTS.items():
@@ -142,9 +143,10 @@ def _room(data: dict, source: str, exits_elsewhere: tuple[str, ...] = ()) -> Roo
     return Room(**kwargs)
 
 
-_BUILDING_KEYS = {"format", "version", "name", "description", "units", "preset", "levels",
-                  "stairs"}
-_LEVEL_KEYS = (_TOP_KEYS - {"format", "version", "units", "preset", "description"}) | {"z"}
+_BUILDING_KEYS = {"format", "version", "name", "description", "units", "preset", "seed",
+                  "levels", "stairs"}
+_LEVEL_KEYS = (_TOP_KEYS - {"format", "version", "units", "preset", "seed",
+                           "description"}) | {"z"}
 _STAIR_KEYS = {"name", "polygon", "bottom", "top", "speed_up", "speed_down"}
 
 
@@ -208,7 +210,7 @@ def building_from_dict(data: dict, source: str = "building") -> Building:
         if "name" in item:
             _checked_name(item["name"], where, "stair")
         stairs.append(Stair(**{"name": f"stair-{i + 1}", **item}))
-    kwargs = {k: data[k] for k in ("name", "description", "preset") if k in data}
+    kwargs = {k: data[k] for k in ("name", "description", "preset", "seed") if k in data}
     return Building(levels=levels, stairs=stairs, **kwargs)
 
 
@@ -219,11 +221,14 @@ def building_to_dict(b: Building) -> dict[str, Any]:
         out["description"] = b.description
     if b.preset is not None:
         out["preset"] = b.preset
+    if b.seed is not None:
+        out["seed"] = b.seed
     out["units"] = "m"
     levels = []
     for lv in b.levels:
         d = {k: v for k, v in room_to_dict(lv.room).items()
-             if k not in ("format", "version", "units", "name", "description", "preset")}
+             if k not in ("format", "version", "units", "name", "description", "preset",
+                          "seed")}
         levels.append({"name": lv.name, "z": lv.z, **d})
     out["levels"] = levels
     out["stairs"] = [{"name": s.name, "polygon": [list(p) for p in s.polygon],
@@ -240,6 +245,8 @@ def room_to_dict(room: Room) -> dict[str, Any]:
         out["description"] = room.description
     if room.preset is not None:
         out["preset"] = room.preset
+    if room.seed is not None:
+        out["seed"] = room.seed
     out["units"] = "m"
     out["outline"] = [list(p) for p in room.outline]
     for key, (cls, label, coord_key, optional) in _ELEMENTS.items():
