@@ -22,6 +22,9 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
   route mesh's resolution).
 * ``docs/data/converged_ab.json``: ``python benchmarks/sfm.py --converged-ab --json FILE``
   (the validated preset's cost per step on Example 2 against the preset before issue 44).
+* ``docs/data/startup.json``: ``python benchmarks/startup.py --json FILE`` (the start-up of
+  cached ``--t-end 0.1`` runs and whole Example 2 processes, eos against the social force
+  model, with ``--against DIR`` also those of another checkout; issue 46).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -280,6 +283,51 @@ def converged_ab(path: Path = DATA / "converged_ab.json") -> str:
     return "\n".join(lines)
 
 
+def startup(path: Path = DATA / "startup.json") -> str:
+    """The start-up and whole-process times of ``benchmarks/startup.py`` (issue 46)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    names = {"this": "this checkout",
+             "against": f"against: {res.get('against_label') or res.get('against')}"}
+    lines = []
+    parts = [("startup", "Start-up, numba's cache warm"), ("whole", "Whole Example 2 process")]
+    for key, title in parts:
+        part = res.get(key)
+        if not part:
+            continue
+        rows = []
+        for k, c in part["checkouts"].items():
+            m = c["models"]
+            rows.append([names.get(k, k), f"{m['eos']['median_s']:.2f}",
+                         f"{m['eos']['best_s']:.2f}", f"{m['sfm']['median_s']:.2f}",
+                         f"{m['sfm']['best_s']:.2f}", f"{c['ratio_median']:.3f}",
+                         f"{c['ratio_best']:.3f}"])
+        lines += [f"**{title}**: `{part['command']}`, {part['repeats']} interleaved "
+                  "repeat(s) of each.", ""]
+        lines += _table(["", "eos median [s]", "best", "sfm median [s]", "best",
+                         "eos / sfm median", "best"], rows, "l")
+        lines.append("")
+        for model, differ in part.get("files_differing", {}).items():
+            lines += [f"`{model}`: output files of both checkouts the same bytes (summary.json "
+                      "apart): " + ("yes." if not differ else f"**no** ({', '.join(differ)})."),
+                      ""]
+    this = res["startup"]["checkouts"]["this"]["models"]["eos"]
+    lines.append(f"Targets (issue 46): the cached eos start-up at most {res['target_start_s']} s "
+                 f"(median {this['median_s']:.2f} s: "
+                 f"**{'met' if res.get('startup_met') else 'not met'}**)")
+    if "whole" in res:
+        w = res["whole"]["checkouts"]["this"]
+        lines[-1] += (f"; the whole eos process at most {res['target_ratio']} of the social "
+                      f"force model's (median {w['ratio_median']:.3f}: "
+                      f"**{'met' if res.get('whole_met') else 'not met'}**)")
+    lines[-1] += "."
+    if res.get("pythondontwritebytecode"):
+        lines += ["", "Measured with `PYTHONDONTWRITEBYTECODE` set: no byte code cached, every "
+                  "module compiled from source at every start."]
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
@@ -287,7 +335,8 @@ SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_threads_eos.md": threads_eos,
             "figures_sfm_jupedsim.md": sfm_reference,
             "figures_convergence.md": convergence,
-            "figures_converged_ab.md": converged_ab}
+            "figures_converged_ab.md": converged_ab,
+            "figures_startup.md": startup}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

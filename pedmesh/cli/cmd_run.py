@@ -23,7 +23,7 @@ def _files() -> str:
 
 
 HELP = "simulate an evacuation with a model (sfm, ...) and write the results"
-DESCRIPTION = """\
+_DESCRIPTION = """\
 Simulate the crowd of a room's start areas until everyone has left (or --t-end) and write
 into the output directory, as the run goes:
 
@@ -39,26 +39,45 @@ examples:
   pedmesh run geometries/example2.json --model sfm --out runs/ex2-sfm
   pedmesh run geometries/example3.json --model sfm --param dt=0.005 --param A=1500
   pedmesh run geometries/corridor_bottleneck.json --model rdue --preset weidmann
-""".replace("{files}", _files())
+"""
+
+
+def DESCRIPTION() -> str:
+    """The description, with the output files (a callable, so that the parser does not
+    import the run driver and the models: filled in when the help is shown)."""
+    return _DESCRIPTION.replace("{files}", _files())
 
 
 def add_max_people_arg(p: argparse.ArgumentParser) -> None:
     """``--max-people N``: the largest crowd a run takes (pedmesh.run.driver.MAX_PEOPLE)."""
-    from ..run.driver import MAX_PEOPLE
 
-    p.add_argument("--max-people", type=int, default=None, metavar="N",
-                   help=f"refuse a crowd of more than N people, estimated from the start "
-                        f"areas before anything is allocated (default: {MAX_PEOPLE:,})")
+    def help_text() -> str:
+        from ..run.driver import MAX_PEOPLE
+
+        return (f"refuse a crowd of more than N people, estimated from the start areas "
+                f"before anything is allocated (default: {MAX_PEOPLE:,})")
+
+    p.add_argument("--max-people", type=int, default=None, metavar="N", help=help_text)
+
+
+def _model_help() -> str:
+    from ..models import model_names
+
+    return f"model to run (default: sfm; available: {', '.join(model_names())})"
+
+
+def _max_steps_help() -> str:
+    from ..run.driver import MAX_STEPS
+
+    return (f"refuse a run of more than N time steps (t_end / dt), before it starts "
+            f"(default: {MAX_STEPS:,})")
 
 
 def add_args(p: argparse.ArgumentParser) -> None:
     from ..parameters import DEFAULT_T_END_S
 
-    from ..models import model_names
-
     p.add_argument("geometry", metavar="GEOMETRY", help="room file (.json, .geojson or .dxf)")
-    p.add_argument("--model", default="sfm",
-                   help=f"model to run (default: sfm; available: {', '.join(model_names())})")
+    p.add_argument("--model", default="sfm", help=_model_help)
     p.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                    help="set a model or numerics parameter (repeatable)")
     p.add_argument("--t-end", type=float, default=DEFAULT_T_END_S, metavar="T",
@@ -79,11 +98,7 @@ def add_args(p: argparse.ArgumentParser) -> None:
                    help="(particle models) keep the initial routes instead of re-solving "
                         "them from the density")
     add_max_people_arg(p)
-    from ..run.driver import MAX_STEPS
-
-    p.add_argument("--max-steps", type=int, default=None, metavar="N",
-                   help=f"refuse a run of more than N time steps (t_end / dt), before it "
-                        f"starts (default: {MAX_STEPS:,})")
+    p.add_argument("--max-steps", type=int, default=None, metavar="N", help=_max_steps_help)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
 
 

@@ -23,6 +23,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import PedmeshError
+from .files import write_through_part
 
 __all__ = ["FrameReadError", "frame_intact", "check_frames_whole", "frame_density",
            "check_same_mesh", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
@@ -87,15 +88,7 @@ def write_vtu(path: str | Path, mesh, point_data: ArrayMap = None, cell_data: Ar
               *, boundary: bool = False) -> Path:
     """Write a mesh with fields to a ``.vtu`` file (see :func:`mesh_to_meshio`)."""
     m = mesh_to_meshio(mesh, point_data, cell_data, boundary=boundary)
-    path = Path(path)
-    tmp = path.with_name(path.name + ".part")
-    try:
-        m.write(tmp, file_format="vtu")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)  # never leave a .part behind (e.g. a full disk)
-        raise
-    return path
+    return write_through_part(path, lambda tmp: m.write(tmp, file_format="vtu"))
 
 
 def _grid(mesh):
@@ -157,8 +150,14 @@ def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayM
     w.SetDataModeToAppended()
     w.EncodeAppendedDataOff()
     w.SetCompressor(vtkLZ4DataCompressor())
+    return _vtk_write_through(w, path, tmp)
+
+
+def _vtk_write_through(writer, path: Path, tmp: Path) -> Path:
+    """Run a VTK writer set to write ``tmp`` (:func:`_vtk_write`), then rename ``tmp`` to
+    ``path``; a failure removes ``tmp``."""
     try:
-        _vtk_write(w, path)
+        _vtk_write(writer, path)
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -251,13 +250,7 @@ def write_vtp(path: str | Path, points: np.ndarray, point_data: ArrayMap = None)
     w.SetInputData(cloud)
     w.SetDataModeToBinary()
     w.SetCompressorTypeToZLib()
-    try:
-        _vtk_write(w, path)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
+    return _vtk_write_through(w, path, tmp)
 
 
 class PVDWriter:
@@ -322,12 +315,10 @@ class PVDWriter:
     def _write_index(self) -> None:
         """The collection file, rewritten whole after every frame (an interrupted run keeps
         a valid one); the frames' lines are kept, so a frame adds one line of work."""
-        from xml.sax.saxutils import quoteattr
-
         while len(self._lines) < len(self.entries):
             t, f = self.entries[len(self._lines)]
             self._lines.append(f'    <DataSet timestep="{t!r}" group="" part="0" '
-                               f'file={quoteattr(f)} />\n')
+                               f'file={_quoteattr(f)} />\n')
         text = ("<?xml version='1.0' encoding='utf-8'?>\n"
                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">\n'
                 "  <Collection>\n" + "".join(self._lines) + "  </Collection>\n</VTKFile>\n")
@@ -341,6 +332,19 @@ class PVDWriter:
 
     def close(self) -> None:
         self._write_index()
+
+
+def _quoteattr(data: str) -> str:
+    """``data`` escaped and quoted as an XML attribute value, exactly as
+    ``xml.sax.saxutils.quoteattr`` does it (whose module imports urllib.request, http.client
+    and ssl: a hundredth of a second at every run's first frame)."""
+    data = data.replace("&", "&amp;").replace(">", "&gt;").replace("<", "&lt;")
+    data = data.replace("\n", "&#10;").replace("\r", "&#13;").replace("\t", "&#9;")
+    if '"' not in data:
+        return f'"{data}"'
+    if "'" not in data:
+        return f"'{data}'"
+    return '"' + data.replace('"', "&quot;") + '"'
 
 
 class FrameReadError(PedmeshError, OSError):

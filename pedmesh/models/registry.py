@@ -10,12 +10,20 @@ them knows a model by name.
 Adding a model is one module that defines its run object and calls :func:`register_model`
 once (see ``tests/run/test_toy_model.py`` for a constant-velocity continuum model in one
 file).
+
+The built-in models register themselves when their modules are imported, and those are
+imported on the registry's first use (:data:`BUILTINS`), not with :mod:`pedmesh.models`:
+:func:`get_model` of a built-in model's name imports that model's module only (a run of
+eos does not import the social force model, issue 46); any other name, and every other
+function here, imports them all first.
 """
 
 from __future__ import annotations
 
+import importlib
+import threading
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 from ..errors import ParameterError
 from ..parameters import Parameter
@@ -72,12 +80,39 @@ class ModelEntry:
 _ENTRIES: dict[str, ModelEntry] = {}
 _ALIASES: dict[str, str] = {}
 
+#: the modules of the built-in models, each with the canonical names it registers that
+#: :func:`get_model` may look up by importing that module alone (an alias or another name
+#: imports them all)
+BUILTINS: dict[str, tuple[str, ...]] = {
+    "pedmesh.models.sfm": ("sfm",),
+    "pedmesh.models.continuum.eos": ("eos",),
+    "pedmesh.models.continuum.rdue": ("rdue",),
+    "pedmesh.models.continuum.pw": ("pw",),
+    "pedmesh.models.continuum.derived": (),
+}
+#: (per thread: how deep in :func:`_load_builtins` its imports are)
+_LOADING = threading.local()
+
+
+def _load_builtins(modules: Iterable[str] = BUILTINS) -> None:
+    """Import the built-in models' ``modules`` (each registers its models when first
+    imported; Python's import lock makes another thread wait for a module being imported)."""
+    _LOADING.depth = getattr(_LOADING, "depth", 0) + 1
+    try:
+        for name in modules:
+            importlib.import_module(name)
+    finally:
+        _LOADING.depth -= 1
+
 
 def register_model(entry: ModelEntry, *, replace: bool = False) -> ModelEntry:
     """Register ``entry`` under its name and aliases (``replace``: a model of that name may
-    be replaced, e.g. in tests). Its parameters become known to the ``--param`` parser."""
+    be replaced, e.g. in tests). Its parameters become known to the ``--param`` parser.
+    The built-in models are registered first (so that a name of theirs is taken)."""
     from ..parameters import declare
 
+    if not getattr(_LOADING, "depth", 0):  # (not a built-in module registering its own)
+        _load_builtins()
     if not isinstance(entry, ModelEntry):
         raise TypeError(f"register_model takes a ModelEntry, got {type(entry).__name__}")
     if not replace and (entry.name in _ENTRIES or entry.name in _ALIASES):
@@ -99,8 +134,13 @@ def unregister_model(name: str) -> None:
 
 def get_model(name: str) -> ModelEntry:
     """The entry of model ``name`` (an alias works too); a one-line error naming the known
-    models otherwise."""
+    models otherwise. A built-in model's name imports its module only (:data:`BUILTINS`)."""
     key = _ALIASES.get(name, name) if isinstance(name, str) else name
+    if key not in _ENTRIES:
+        _load_builtins([m for m, names in BUILTINS.items() if key in names])
+    if key not in _ENTRIES:
+        _load_builtins()
+        key = _ALIASES.get(name, name) if isinstance(name, str) else name
     if key not in _ENTRIES:
         raise ParameterError(f"unknown model '{name}' (models: {', '.join(model_names())})")
     return _ENTRIES[key]
@@ -108,6 +148,7 @@ def get_model(name: str) -> ModelEntry:
 
 def model_names() -> list[str]:
     """The canonical names of the registered models, sorted."""
+    _load_builtins()
     return sorted(_ENTRIES)
 
 

@@ -719,7 +719,9 @@ def _one_blas_thread():
     afterwards."""
     global _BLAS
     if _BLAS is None:
-        import scipy.sparse.linalg  # noqa: F401  (its BLAS too, before the libraries are listed)
+        # scipy's BLAS loaded before the libraries are listed (scipy.linalg loads the
+        # OpenBLAS of scipy.sparse.linalg too, and numba has imported it already)
+        import scipy.linalg  # noqa: F401
         from threadpoolctl import ThreadpoolController
 
         _BLAS = ThreadpoolController()
