@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import subprocess
+import time
 import sys
 
 import meshio
@@ -255,3 +256,38 @@ def test_a_room_file_pins_the_seed(tmp_path, geometries_dir):
     bad = {**data, "seed": -1}
     room.write_text(json.dumps(bad))
     assert main(["run", str(room), "--out", str(tmp_path / "bad"), "-q"]) == 2
+
+
+def test_a_fresh_install_says_it_compiles_within_two_seconds(tmp_path, geometries_dir):
+    """Issue 46: with an empty numba cache (a fresh install), `pedmesh run` prints the
+    compile notice within 2 s of its start (the process is stopped there: the compilation
+    itself takes minutes)."""
+    import os
+    import threading
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba-cache"))
+    cmd = [sys.executable, "-m", "pedmesh", "run",
+           str(geometries_dir / "corridor_bottleneck.json"), "--t-end", "0.5",
+           "--out", str(tmp_path / "run")]
+    lines: list[tuple[float, str]] = []
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL,
+                            text=True, env=env)
+
+    def read() -> None:
+        for line in proc.stderr:
+            lines.append((time.perf_counter() - t0, line))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        deadline = time.perf_counter() + 60
+        while not lines and proc.poll() is None and time.perf_counter() < deadline:
+            time.sleep(0.01)
+    finally:
+        proc.kill()
+        proc.wait()
+    assert lines, "nothing printed"
+    when, first = lines[0]
+    assert first.startswith("pedmesh: compiling the numerical kernels"), first
+    assert when < 2.0, f"the notice came after {when:.2f} s"

@@ -113,8 +113,16 @@ def kernels_compiled(particle: bool) -> bool:
     cache already (else the first run compiles them, once per install)."""
     import pedmesh
 
+    import os
+
     sub, prefix = _KERNELS["sfm" if particle else "continuum"]
-    cache = Path(pedmesh.__file__).parent / sub / "__pycache__"
+    src = Path(pedmesh.__file__).parent / sub
+    cache = src / "__pycache__"
+    if os.environ.get("NUMBA_CACHE_DIR"):  # (numba's cache elsewhere, in its own layout)
+        from numba.core.caching import UserProvidedCacheLocator
+
+        cache = Path(os.environ["NUMBA_CACHE_DIR"]) / \
+            UserProvidedCacheLocator.get_suitable_cache_subpath(str(src / "kernels.py"))
     return cache.is_dir() and any(p.name.startswith(prefix) and p.suffix == ".nbi"
                                   for p in cache.iterdir())
 
