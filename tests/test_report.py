@@ -360,6 +360,13 @@ def test_report_in_headless_chromium(browser, reports, kind):
             assert f"{s[key]:.1f} s" in text
     if kind == "ensemble":
         assert "5-95 %" in text
+    # issue 46: plain words and one unit style; people in whole numbers (a continuum's
+    # fractional mass stays exact in its files)
+    assert "1/s^2" not in text and "cells with centroids" not in text
+    # (a rate, people/(m·s) or people per second, may have decimals)
+    fractions = re.findall(r"\b\d+\.\d+ (?:people|persons|pedestrians)\b(?!/| per)"
+                           r"|\bout \d+\.\d+|\b\d+\.\d+ (?:/|of) \d+ (?:people|out)", text)
+    assert fractions == []
     # the slider changes the picture
     box = browser.find_element(By.CSS_SELECTOR, ".snapshots")
     img = box.find_element(By.CSS_SELECTOR, "img.snap")

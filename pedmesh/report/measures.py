@@ -45,8 +45,8 @@ def los_index(rho: np.ndarray, scale: str = "walkway") -> np.ndarray:
 
 def los_scale(safety: Mapping | None) -> str:
     los = (safety or {}).get("level_of_service") or {}
-    scale = str(los.get("scale") or "walkway").lower()
-    return "queuing" if scale.startswith("queu") else "walkway"
+    scale = str(los.get("scale") or "walkway").lower()  # (e.g. "Fruin walkway")
+    return "queuing" if "queu" in scale else "walkway"
 
 
 def describe_place(room, x: Any, y: Any) -> str:
@@ -119,7 +119,7 @@ def run_sentences(run: Run) -> list[str]:
             out.append(sentence + ".")
         los = sf.get("level_of_service") or {}
         if los.get("worst"):
-            out.append(f"The worst level of service (Fruin, {los.get('scale') or 'walkway'}) "
+            out.append(f"The worst level of service (Fruin, {los_scale(sf)}) "
                        f"was {los['worst']}.")
         cp = sf.get("crowd_pressure")
         if isinstance(cp, dict) and is_num(cp.get("max")):

@@ -8,6 +8,7 @@ from typing import Mapping, Sequence
 
 from .html import attr, esc, html_table
 from .load import Run
+from .measures import los_scale
 from .text import exact, float_or_none, is_num, number, people, seconds, unit_text
 
 __all__ = ["key_numbers", "comparison_table", "safety_table", "exit_table",
@@ -93,7 +94,7 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
         if counts:
             text += "; cells by their worst level: " + ", ".join(
                 f"{esc(k)}: {number(v)}" for k, v in counts.items())
-        rows.append((f"level of service (Fruin, {esc(los.get('scale') or 'walkway')})", text))
+        rows.append((f"level of service (Fruin, {los_scale(sf)})", text))
     if "crowd_pressure" in sf:
         cp = sf.get("crowd_pressure")
         if isinstance(cp, dict):
@@ -112,9 +113,10 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
             rows.append(("crowd pressure ρ Var(v)", "not applicable (no particle velocities)"))
     for name, e in (sf.get("exits") or {}).items():
         if isinstance(e, dict):
-            rows.append((f"exit '{esc(name)}'",
-                         f"{number(e.get('people'))} people, first at {number(e.get('first'))} s, "
-                         f"last at {number(e.get('last'))} s"))
+            # (people whole: a continuum's fractional mass is exact in summary.json)
+            when = (f", first at {number(e.get('first'))} s, last at {number(e.get('last'))} s"
+                    if is_num(e.get("first")) else "")
+            rows.append((f"exit '{esc(name)}'", f"{people(e.get('people'))} people{when}"))
     ct = sf.get("clear_times") or {}
     for group, what in (("start_areas", "start area"), ("measurement_areas",
                                                           "measurement area")):
