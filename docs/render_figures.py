@@ -25,6 +25,9 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
 * ``docs/data/startup.json``: ``python benchmarks/startup.py --json FILE`` (the start-up of
   cached ``--t-end 0.1`` runs and whole Example 2 processes, eos against the social force
   model, with ``--against DIR`` also those of another checkout; issue 46).
+* ``docs/data/building_steps.json``: ``python benchmarks/building_steps.py --reference
+  --json FILE`` (a social force model step of ten people on the top floor of 10- and
+  50-floor towers against the same ten in a one-floor room; issue 45).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -328,6 +331,32 @@ def startup(path: Path = DATA / "startup.json") -> str:
     return "\n".join(lines)
 
 
+def building_steps(path: Path = DATA / "building_steps.json") -> str:
+    """A step on a tall building against one in a room (``benchmarks/building_steps.py``,
+    issue 45)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    rows = []
+    for r in sorted(res["rows"], key=lambda r: (r["levels"], r["whole_solves"])):
+        what = ("the one-floor room" if r["levels"] == 1 else
+                f"{r['levels']}-floor tower" + (", whole route solves" if r["whole_solves"]
+                                                else ""))
+        marched = "" if r["marched"] is None else f"{r['marched']:,}"
+        rows.append([what, f"{r['vertices']:,}", marched, f"{r['median_ms']:.3f}",
+                     f"{r['best_ms']:.3f}", f"{r['routing_median_ms']:.3f}",
+                     f"{r['ratio_median']:.2f}", f"{r['ratio_best']:.2f}"])
+    lines = [f"{res['people']} people, steps {res['warmup'] + 1}-{res['warmup'] + res['steps']} "
+             f"of each run, {res['repeats']} interleaved repeats; *marched*: the vertices the "
+             "last route solve marched (of the surface's *vertices*).", ""]
+    lines += _table(["", "vertices", "marched", "ms/step median", "best", "routing [ms/step]",
+                     "x room median", "best"], rows, "l")
+    top = max(res["levels"])
+    lines += ["", f"Goal (issue 45): a step of the {top}-floor tower at most {res['target']:g} "
+              f"times the room's: **{'met' if res['met'] else 'not met'}**.", "",
+              _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
@@ -336,7 +365,8 @@ SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_sfm_jupedsim.md": sfm_reference,
             "figures_convergence.md": convergence,
             "figures_converged_ab.md": converged_ab,
-            "figures_startup.md": startup}
+            "figures_startup.md": startup,
+            "figures_building_steps.md": building_steps}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

@@ -119,6 +119,31 @@ GRID_CELL_PER_KERNEL = 0.25
 GRID_MAX_NODES = 4_000_000
 
 
+def _apart(i0: np.ndarray, i1: np.ndarray, j0: np.ndarray, j1: np.ndarray,
+           r: int) -> list[np.ndarray]:
+    """Groups of the boxes ``[i0 - r, i1 + r] x [j0 - r, j1 + r]`` (k,) of grid nodes such
+    that the boxes of two groups are more than a node apart (so that no node reads a node
+    of another group's box, and no point's four nodes lie in two): split where the boxes
+    sorted along one axis leave such a gap, then each part along the other axis, until no
+    part splits. Returns the indices of each group."""
+    out = []
+    todo = [(np.arange(len(i0)), 0, True)]
+    while todo:
+        g, axis, split_other = todo.pop()
+        lo, hi = (i0, i1) if axis == 0 else (j0, j1)
+        order = g[np.argsort(lo[g], kind="stable")]
+        reach = np.maximum.accumulate(hi[order])
+        cut = np.flatnonzero(lo[order][1:] - reach[:-1] > 2 * r + 1) + 1
+        if len(cut):
+            for part in np.split(order, cut):
+                todo.append((part, 1 - axis, True))
+        elif split_other:
+            todo.append((g, 1 - axis, False))
+        else:
+            out.append(np.sort(g))
+    return out
+
+
 class GridKernelDensity:
     """The Gaussian kernel density ``sum_j exp(-|x_j - x|^2 / L^2) / (pi L^2)`` [ped/m^2]
     of a crowd at fixed ``points`` [m], for kernels much wider than the people are apart
@@ -184,3 +209,77 @@ class GridKernelDensity:
             return np.zeros(self.n_points)
         g = self.grid(positions).ravel()
         return np.einsum("kp,kp->p", g[self._idx], self._w)
+
+    def near(self, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(points, density)``: the points (indices) where the density of a crowd at
+        ``positions`` may be above 0 and the density there, the same numbers as
+        :meth:`__call__`'s, which is 0 at every other point; the work grows with the
+        crowd's extent, not with the grid's. The filter reaches ``r`` nodes
+        (:func:`scipy.ndimage.gaussian_filter`'s radius) along each axis, so only the
+        nodes within ``r`` of a person's nodes get density, and those have the full grid's:
+        each node's sum reads the same nodes, zero beyond. The crowd is taken in groups
+        whose boxes (their nodes and ``r`` more about them) lie apart, one box each (e.g.
+        one for each floor people stand on)."""
+        x = np.asarray(positions, float).reshape(-1, 2)
+        if len(x) == 0:
+            return np.zeros(0, np.int64), np.zeros(0)
+        ny = self.shape[1]
+        r = int(4.0 * self.sigma + 0.5)  # (truncate 4, as in grid())
+        idx, w = self._bilinear(x)
+        i, j = idx // ny, idx % ny
+        parts = [self._near_box(idx[:, g], w[:, g], r) for g in
+                 _apart(i.min(axis=0), i.max(axis=0), j.min(axis=0), j.max(axis=0), r)]
+        return (np.concatenate([p for p, _ in parts]),
+                np.concatenate([v for _, v in parts]))
+
+    def _near_box(self, idx: np.ndarray, w: np.ndarray, r: int):
+        """:meth:`near` for the people with stencils ``idx``, ``w`` (4, k), alone in their
+        box."""
+        from scipy import ndimage
+
+        from ..mesh.triangle_mesh import csr_ranges
+
+        nx, ny = self.shape
+        none = (np.zeros(0, np.int64), np.zeros(0))
+        i, j = idx // ny, idx % ny
+        i0, i1 = max(int(i.min()) - r, 0), min(int(i.max()) + r, nx - 1)
+        j0, j1 = max(int(j.min()) - r, 0), min(int(j.max()) + r, ny - 1)
+        wy = j1 - j0 + 1
+        local = (i - i0) * wy + (j - j0)
+        mass = np.bincount(local.ravel(), weights=w.ravel(), minlength=(i1 - i0 + 1) * wy)
+        g = mass.reshape(i1 - i0 + 1, wy) / (self.cell * self.cell)
+        g = ndimage.gaussian_filter(g, self.sigma, mode="constant", cval=0.0, truncate=4.0)
+        # the points whose stencil (lower-left node (a, b), a in [i0 - 1, i1], b likewise)
+        # reaches the box
+        ptr, order = self._by_node()
+        a = np.arange(max(i0 - 1, 0), min(i1, nx - 2) + 1)
+        b0, b1 = max(j0 - 1, 0), min(j1, ny - 2)
+        if len(a) == 0 or b1 < b0:
+            return none
+        lo, hi = ptr[a * ny + b0], ptr[a * ny + b1 + 1]
+        pts = order[csr_ranges(lo, hi - lo)]
+        if len(pts) == 0:
+            return none
+        k = self._idx[:, pts]
+        ki, kj = k // ny, k % ny
+        inside = (ki >= i0) & (ki <= i1) & (kj >= j0) & (kj <= j1)
+        gv = np.append(g.ravel(), 0.0)
+        vals = gv[np.where(inside, (ki - i0) * wy + (kj - j0), gv.size - 1)]
+        w_p = self._w[:, pts]
+        # einsum's sum over k is in k's order on C-ordered (4, p) arrays of p > 1 points
+        # (as in __call__); on others (one point, or the F order a fancy index along the
+        # second axis gives) it may group the terms otherwise
+        reps = 2 if len(pts) == 1 else 1
+        vals = np.ascontiguousarray(np.repeat(vals, reps, axis=1))
+        w_p = np.ascontiguousarray(np.repeat(w_p, reps, axis=1))
+        return pts, np.einsum("kp,kp->p", vals, w_p)[:len(pts)]
+
+    def _by_node(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points by the lower-left node of their stencil: CSR ``(ptr, points)``."""
+        if not hasattr(self, "_node_csr"):
+            key = self._idx[0]
+            order = np.argsort(key, kind="stable")
+            ptr = np.zeros(self.shape[0] * self.shape[1] + 1, np.int64)
+            np.cumsum(np.bincount(key, minlength=self.shape[0] * self.shape[1]), out=ptr[1:])
+            self._node_csr = (ptr, order)
+        return self._node_csr

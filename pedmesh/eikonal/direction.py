@@ -334,6 +334,60 @@ def _wall_normals(mesh: TriMesh) -> np.ndarray:
     return cache["wall_normals"]
 
 
+def _boundary_slots(mesh: TriMesh) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) each vertex's row in :func:`_boundary_wedges`' wedges and in its exit
+    directions, -1 where it has none."""
+    cache = mesh._cache
+    if "wedge_slots" not in cache:
+        verts, _, _, on_exit, _ = _boundary_wedges(mesh)
+        wedge = np.full(mesh.n_points, -1, np.int64)
+        wedge[verts] = np.arange(len(verts))
+        ex = np.full(mesh.n_points, -1, np.int64)
+        ex[on_exit] = np.arange(len(on_exit))
+        cache["wedge_slots"] = (wedge, ex)
+    return cache["wedge_slots"]
+
+
+def vertex_directions(mesh: TriMesh, triangle_gradients: np.ndarray, finite: np.ndarray,
+                      vertices: np.ndarray | None = None, averaging=None) -> np.ndarray:
+    """(k, 2) the unit directions at ``vertices`` (all by default) of the field whose P1
+    gradients per triangle are ``triangle_gradients`` (m, 2): the descent of the
+    area-weighted mean gradient of the triangles around each vertex, turned into the
+    walkable wedge on the boundary, the exit's outward normal on an exit, 0 where phi is
+    not ``finite`` (n,) bool (see the module docstring). Each vertex's direction is
+    computed alone: those of a subset are those of all, bit for bit (which
+    :class:`~pedmesh.eikonal.active.ActiveRoutes` relies on). ``averaging``: the rows
+    ``vertices`` of :func:`_vertex_averaging` (taken from it if not given)."""
+    M = _vertex_averaging(mesh)
+    # (the averaging's positive row scaling does not change the normalised direction)
+    if vertices is None:
+        e = _normalise(M @ triangle_gradients)
+        slot_w, slot_x = _boundary_slots(mesh)
+        ok = finite
+    else:
+        e = _normalise((M[vertices] if averaging is None else averaging)
+                       @ triangle_gradients)
+        slot_w, slot_x = (a[vertices] for a in _boundary_slots(mesh))
+        ok = finite[vertices]
+    np.negative(e, out=e)
+    _, dn, dp, _, exit_dir = _boundary_wedges(mesh)
+    rows = np.flatnonzero(slot_w >= 0)
+    dn, dp = dn[slot_w[rows]], dp[slot_w[rows]]
+    ev = e[rows]
+    wedge = _ccw_angle(dn, dp)
+    ang = _ccw_angle(dn, ev)
+    outside = (ang > wedge) & (np.hypot(ev[:, 0], ev[:, 1]) > 0)
+    # turn onto the nearer wedge side: d_next (angle 0) or d_prev (angle = wedge)
+    to_next = (2 * np.pi - ang) < (ang - wedge)
+    ev[outside & to_next] = dn[outside & to_next]
+    ev[outside & ~to_next] = dp[outside & ~to_next]
+    e[rows] = ev
+    on_exit = np.flatnonzero(slot_x >= 0)
+    e[on_exit] = exit_dir[slot_x[on_exit]]
+    e[~ok] = 0.0
+    return e
+
+
 class DirectionField:
     """Unit desired-direction field of a route potential (see module docstring).
 
@@ -348,7 +402,6 @@ class DirectionField:
     def __init__(self, mesh: TriMesh, phi: np.ndarray) -> None:
         self.mesh = mesh
         phi = np.asarray(phi, dtype=np.float64)
-        finite = np.isfinite(phi)
         m = mesh.n_triangles
         #: (m, 2) P1 gradient of phi per triangle (0 where a vertex value is infinite).
         self.triangle_gradients = np.empty((m, 2))
@@ -356,23 +409,9 @@ class DirectionField:
         self.triangle_directions = np.empty((m, 2))
         _descent(_basis_gradients(mesh), mesh.triangles, phi, self.triangle_gradients,
                  self.triangle_directions)
-        # (the averaging's positive row scaling does not change the normalised direction)
-        e = _normalise(_vertex_averaging(mesh) @ self.triangle_gradients)
-        np.negative(e, out=e)
-        verts, dn, dp, on_exit, exit_dir = _boundary_wedges(mesh)
-        ev = e[verts]
-        wedge = _ccw_angle(dn, dp)
-        ang = _ccw_angle(dn, ev)
-        outside = (ang > wedge) & (np.hypot(ev[:, 0], ev[:, 1]) > 0)
-        # turn onto the nearer wedge side: d_next (angle 0) or d_prev (angle = wedge)
-        to_next = (2 * np.pi - ang) < (ang - wedge)
-        ev[outside & to_next] = dn[outside & to_next]
-        ev[outside & ~to_next] = dp[outside & ~to_next]
-        e[verts] = ev
-        e[on_exit] = exit_dir
-        e[~finite] = 0.0
         #: (n, 2) unit direction at the vertices.
-        self.vertex_directions = np.ascontiguousarray(e)
+        self.vertex_directions = np.ascontiguousarray(
+            vertex_directions(mesh, self.triangle_gradients, np.isfinite(phi)))
         self._packed: np.ndarray | None = None
 
     @property

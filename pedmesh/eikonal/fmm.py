@@ -46,6 +46,9 @@ MAX_RAY_SAMPLES = 16
 #: Largest number of triangles the obtuse-angle split may cross.
 MAX_SPLIT_STEPS = 24
 
+#: (no record of the order of acceptance, :func:`~pedmesh.eikonal.fmm_kernels.march`)
+_NO_ORDER = np.empty(0, np.int32)
+
 
 def _int32_rows(*columns: np.ndarray) -> np.ndarray:
     """The columns side by side as one C-contiguous int32 array (one row per entry)."""
@@ -77,6 +80,11 @@ class EikonalSolver:
     >>> solver = EikonalSolver(mesh)                        # doctest: +SKIP
     >>> phi = solver.solve(cost=1.0 / speed_at_vertices)    # doctest: +SKIP
     """
+
+    #: vertices of equal value accepted in the order of their numbers
+    #: (:func:`~pedmesh.eikonal.fmm_kernels.march`); a room's march breaks ties in its
+    #: heap's order
+    ordered = False
 
     def __init__(self, mesh: TriMesh, exits: Sequence[str | int] | None = None,
                  corner_radius: float = DEFAULT_CORNER_RADIUS) -> None:
@@ -198,6 +206,7 @@ class EikonalSolver:
         _fmm.march(
             T, self.fixed_vertices, vals, self.pts, self.vt_ptr, self.vt_corner,
             self.ds_ptr, self.ds_corner, self.ray_ptr, self.ray_idx, ray_cost, f_tri,
+            self.ordered, _NO_ORDER,
         )
         return T
 

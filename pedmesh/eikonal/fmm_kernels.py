@@ -85,12 +85,15 @@ if not _prefetch_works():  # pragma: no cover
 
 # ---------------------------------------------------------------- indexed 4-ary heap
 @nb.njit(cache=True, inline="always")
-def _sift_up(hv, hk, pos, i, v, key):
-    """Place vertex ``v`` with ``key`` at slot ``i`` or above."""
+def _sift_up(hv, hk, pos, i, v, key, ordered):
+    """Place vertex ``v`` with ``key`` at slot ``i`` or above (``ordered``: equal keys in
+    the order of their vertices, see :func:`march`)."""
     while i > 0:
         p = (i - 1) >> 2
         kp = hk[p]
-        if kp <= key:
+        if kp < key:
+            break
+        if kp == key and (not ordered or hv[p] < v):
             break
         w = hv[p]
         hv[i] = w
@@ -103,8 +106,9 @@ def _sift_up(hv, hk, pos, i, v, key):
 
 
 @nb.njit(cache=True, inline="always")
-def _sift_down_last(hv, hk, pos, size):
-    """Move the element in slot ``size`` (just removed from the end) down from the root."""
+def _sift_down_last(hv, hk, pos, size, ordered):
+    """Move the element in slot ``size`` (just removed from the end) down from the root
+    (``ordered``: equal keys in the order of their vertices)."""
     v = hv[size]
     key = hk[size]
     i = 0
@@ -119,9 +123,18 @@ def _sift_down_last(hv, hk, pos, size):
             if hk[j] < kb:
                 kb = hk[j]
                 best = j
-        if kb >= key:
+        if kb > key:
             break
         w = hv[best]
+        if ordered:  # of the children with the least key, the least vertex
+            for j in range(c, e):  # (all four: a trip count that does not vary)
+                if (hk[j] == kb) & (hv[j] < w):
+                    best = j
+                    w = hv[j]
+            if kb == key and w > v:
+                break
+        elif kb == key:
+            break
         hv[i] = w
         hk[i] = kb
         pos[w] = i
@@ -175,17 +188,26 @@ def triangle_update(cx, cy, cz, ax, ay, az, bx, by, bz, ta, tb, f):
 
 
 # ---------------------------------------------------------------- the march
+#: the rank of a vertex not accepted (yet): larger than every acceptance rank
+UNRANKED = np.iinfo(np.int32).max
+
+
 @nb.njit(cache=True)
 def march(
     T, fixed_vertices, fixed_values, pts, vt_ptr, vt_corner, ds_ptr, ds_corner,
-    ray_ptr, ray_idx, ray_cost, f_tri,
+    ray_ptr, ray_idx, ray_cost, f_tri, ordered, order,
 ):
-    """Fast marching from the fixed (exit) vertices; fills ``T`` in place. ``pts`` (n, 3)
-    [m]: a room's vertices with z = 0, or a building surface's in 3-D.
+    """Fast marching from the fixed (exit) vertices; fills ``T`` in place and returns the
+    number of vertices accepted. ``pts`` (n, 3) [m]: a room's vertices with z = 0, or a
+    building surface's in 3-D.
 
     ``vt_corner`` and ``ds_corner`` are the corner and split-target rows described in the
     module docstring, ``ray_cost[k]`` the cost of corner ray ``k`` and ``f_tri`` the
-    slowness per triangle [s/m]. Unreached vertices keep ``inf``.
+    slowness per triangle [s/m]. Unreached vertices keep ``inf``. ``ordered``: vertices of
+    equal value are accepted in the order of their numbers (else in the heap's order, which
+    depends on the march's history); then the march is a function of the costs alone, which
+    :func:`march_from` needs. ``order`` (n,) int32, or empty: filled with the vertices in
+    the order they were accepted.
     """
     n = T.shape[0]
     pos = np.full(n, FAR, np.int32)
@@ -202,37 +224,140 @@ def march(
     for j in range(fixed_vertices.shape[0]):
         v = fixed_vertices[j]
         if pos[v] == FAR:
-            _sift_up(hv, hk, pos, size, v, T[v])
+            _sift_up(hv, hk, pos, size, v, T[v], ordered)
             size += 1
         fixed[v] = True
-    # Every candidate for a vertex c is offered inline below (lower T[c], then insert or
-    # decrease-key): helper functions taking arrays are 1.4-2.5x slower in numba. A vertex
-    # entering the heap gets its list pointers prefetched.
-    while size > 0:
-        v = hv[0]
-        tv = hk[0]
-        pos[v] = ACCEPTED
-        size -= 1
-        if size > 0:
-            _sift_down_last(hv, hk, pos, size)
-            # the likely next vertex: fetch its corner rows while v is processed
-            nxt = hv[0]
-            p0 = vt_ptr[nxt]
-            p1 = vt_ptr[nxt + 1]
-            _prefetch(vt_corner, p0)
-            _prefetch(vt_corner, (p0 + p1) >> 1)
-            _prefetch(vt_corner, p1 - 1)
+    none = np.empty(0, np.int32)  # (no rank, no sources)
+    if ordered:  # (each a copy of the loop compiled for its tie rule)
+        return _march_loop(T, pos, none, fixed, hv, hk, size, 0, none, pts, vt_ptr,
+                           vt_corner, ds_ptr, ds_corner, ray_ptr, ray_idx, ray_cost, f_tri,
+                           True, order)
+    return _march_loop(T, pos, none, fixed, hv, hk, size, 0, none, pts, vt_ptr, vt_corner,
+                       ds_ptr, ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, False, order)
+
+
+@nb.njit(cache=True)
+def march_from(
+    T, phi0, rank0, order0, k0, pos, fixed, mark, rev_ptr, rev_idx, pts, vt_ptr, vt_corner,
+    ds_ptr, ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, order,
+):
+    """The ordered :func:`march` for the costs ``f_tri``, ``ray_cost`` from the state after
+    its first ``k0`` acceptances, where those are known to be the first ``k0`` of an earlier
+    ordered march: ``phi0``, the place of each vertex in its order ``rank0``
+    (:data:`UNRANKED` if never accepted) and its order ``order0``. That holds for a value
+    ``m`` such that the earlier march accepted ``k0`` vertices before the first at or above
+    ``m``, when every triangle whose cost differs from the earlier march's has all its
+    vertices at ``phi0 >= m`` and every corner ray whose cost differs has ``phi0`` at its
+    source plus the lower of its two costs ``>= m``: those updates then never bring a value
+    below ``m`` in either march (a vertex below it uses none of them), so the values below
+    ``m`` are offered the same updates and accepted in the same order (the order is a
+    function of the values, ties by vertex number). Fills ``T`` (``phi0`` for the first
+    ``k0``) and returns the number of vertices accepted.
+
+    The first ``k0`` count as accepted; the updates they would have offered to the others
+    are offered again (with the new costs, and each with the corners accepted before it,
+    by ``rank0``): the sources are the accepted neighbours of the others (``rev_ptr``,
+    ``rev_idx``: CSR by vertex of the vertices that offer it updates through the split
+    rows and the corner rays; the triangle neighbours from the corner rows). Then the
+    march goes on. ``pos`` (n,) int32 all ``ACCEPTED``, ``fixed`` (n,) bool (the exit
+    vertices, which must be among the first ``k0``) and ``mark`` (n,) bool all False are
+    work arrays, left as they were: the work grows with the vertices not among the first
+    ``k0``, not with the mesh.
+    """
+    n = T.shape[0]
+    for v in range(n):
+        T[v] = phi0[v]
+    src = np.empty(n, np.int32)
+    ns = 0
+    for k in range(k0, order0.shape[0]):
+        c = order0[k]
+        T[c] = np.inf
+        pos[c] = FAR
+    for k in range(k0, order0.shape[0]):
+        c = order0[k]
+        for s in range(vt_ptr[c], vt_ptr[c + 1]):
+            for r in range(1, 3):
+                v = vt_corner[s, r]
+                if pos[v] == ACCEPTED and not mark[v]:
+                    mark[v] = True
+                    src[ns] = v
+                    ns += 1
+        for s in range(rev_ptr[c], rev_ptr[c + 1]):
+            v = rev_idx[s]
+            if pos[v] == ACCEPTED and not mark[v]:
+                mark[v] = True
+                src[ns] = v
+                ns += 1
+    for k in range(ns):
+        mark[src[k]] = False
+    hv = np.empty(n, np.int32)
+    hk = np.empty(n, np.float64)
+    cnt = _march_loop(T, pos, rank0, fixed, hv, hk, 0, k0, src[:ns], pts, vt_ptr, vt_corner,
+                      ds_ptr, ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, True, order)
+    for k in range(k0, order0.shape[0]):  # (unreached ones, had there been any)
+        pos[order0[k]] = ACCEPTED
+    return cnt
+
+
+@nb.njit(cache=True, inline="always")
+def _march_loop(
+    T, pos, rank, fixed, hv, hk, size, cnt, sources, pts, vt_ptr, vt_corner, ds_ptr,
+    ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, ordered, order,
+):
+    """The march: accept the heap's least vertex, offer its updates to the others, until
+    the heap is empty; returns the number accepted (``cnt`` before). First the accepted
+    ``sources`` (at ``T``) offer theirs again, as when they were accepted: a corner ``o``
+    counts as accepted then if ``rank[o] < rank[v]`` (``pos`` says which vertices take no
+    more updates)."""
+    record = order.shape[0] > 0
+    n_src = sources.shape[0]
+    k_src = 0
+    rv = 0
+    while True:
+        replay = k_src < n_src
+        if replay:
+            v = sources[k_src]
+            k_src += 1
+            tv = T[v]
+            rv = rank[v]
+        elif size > 0:
+            v = hv[0]
+            tv = hk[0]
+            pos[v] = ACCEPTED
+            if record:
+                order[cnt] = v
+            cnt += 1
+            size -= 1
+            if size > 0:
+                _sift_down_last(hv, hk, pos, size, ordered)
+                # the likely next vertex: fetch its corner rows while v is processed
+                nxt = hv[0]
+                p0 = vt_ptr[nxt]
+                p1 = vt_ptr[nxt + 1]
+                _prefetch(vt_corner, p0)
+                _prefetch(vt_corner, (p0 + p1) >> 1)
+                _prefetch(vt_corner, p1 - 1)
+        else:
+            break
         vx = pts[v, 0]
         vy = pts[v, 1]
         vz = pts[v, 2]
+        # Every candidate for a vertex c is offered inline below (lower T[c], then insert
+        # or decrease-key): helper functions taking arrays are 1.4-2.5x slower in numba. A
+        # vertex entering the heap gets its list pointers prefetched.
         # the triangles (v, A, B) around v: update A, then B (each with the third corner o)
         for s in range(vt_ptr[v], vt_ptr[v + 1]):
             c = vt_corner[s, 1]
             o = vt_corner[s, 2]
-            c_acc = pos[c] == ACCEPTED
-            o_acc = pos[o] == ACCEPTED
-            if c_acc and o_acc:
+            c_done = pos[c] == ACCEPTED
+            o_done = pos[o] == ACCEPTED
+            if c_done and o_done:
                 continue
+            c_acc = c_done
+            o_acc = o_done
+            if replay:  # (accepted before v)
+                c_acc = c_done and rank[c] < rv
+                o_acc = o_done and rank[o] < rv
             f = f_tri[vt_corner[s, 0]]
             cx = pts[c, 0]
             cy = pts[c, 1]
@@ -242,9 +367,9 @@ def march(
             oz = pts[o, 2]
             for r in range(2):
                 if r == 1:  # swap roles: B is the target, A the third corner
-                    c, o, c_acc, o_acc = o, c, o_acc, c_acc
+                    c, o, c_acc, o_acc, c_done = o, c, o_acc, c_acc, o_done
                     cx, cy, cz, ox, oy, oz = ox, oy, oz, cx, cy, cz
-                if c_acc:
+                if c_done:
                     continue
                 d = vt_corner[s, 3 + r]  # the vertex splitting the obtuse angle at C, or -1
                 if o_acc and d < 0:
@@ -252,7 +377,8 @@ def march(
                 else:
                     cand = tv + f * math.sqrt((vx - cx) ** 2 + (vy - cy) ** 2
                                               + (vz - cz) ** 2)  # edge update
-                    if d >= 0 and pos[d] == ACCEPTED:  # virtual triangle (C, v, D)
+                    if d >= 0 and pos[d] == ACCEPTED and (not replay or rank[d] < rv):
+                        # the virtual triangle (C, v, D)
                         cv = triangle_update(cx, cy, cz, vx, vy, vz, pts[d, 0], pts[d, 1],
                                              pts[d, 2], tv, T[d], f)
                         if cv < cand:
@@ -264,10 +390,10 @@ def march(
                         _prefetch(vt_ptr, c)
                         _prefetch(ds_ptr, c)
                         _prefetch(ray_ptr, c)
-                        _sift_up(hv, hk, pos, size, c, cand)
+                        _sift_up(hv, hk, pos, size, c, cand, ordered)
                         size += 1
                     else:
-                        _sift_up(hv, hk, pos, pc, c, cand)
+                        _sift_up(hv, hk, pos, pc, c, cand, ordered)
         # v as the split vertex D of obtuse corners C: virtual triangles (C, A, v), (C, v, B)
         for s in range(ds_ptr[v], ds_ptr[v + 1]):
             c = ds_corner[s, 1]
@@ -280,7 +406,7 @@ def march(
             cand = np.inf
             for r in range(2, 4):
                 o = ds_corner[s, r]  # A, then B
-                if pos[o] == ACCEPTED:
+                if pos[o] == ACCEPTED and (not replay or rank[o] < rv):
                     cv = triangle_update(cx, cy, cz, vx, vy, vz, pts[o, 0], pts[o, 1],
                                          pts[o, 2], tv, T[o], f)
                     if cv < cand:
@@ -292,10 +418,10 @@ def march(
                     _prefetch(vt_ptr, c)
                     _prefetch(ds_ptr, c)
                     _prefetch(ray_ptr, c)
-                    _sift_up(hv, hk, pos, size, c, cand)
+                    _sift_up(hv, hk, pos, size, c, cand, ordered)
                     size += 1
                 else:
-                    _sift_up(hv, hk, pos, pc, c, cand)
+                    _sift_up(hv, hk, pos, pc, c, cand, ordered)
         # straight rays from exit end points and reflex corners
         for k in range(ray_ptr[v], ray_ptr[v + 1]):
             c = ray_idx[k]
@@ -309,11 +435,11 @@ def march(
                     _prefetch(vt_ptr, c)
                     _prefetch(ds_ptr, c)
                     _prefetch(ray_ptr, c)
-                    _sift_up(hv, hk, pos, size, c, cand)
+                    _sift_up(hv, hk, pos, size, c, cand, ordered)
                     size += 1
                 else:
-                    _sift_up(hv, hk, pos, pc, c, cand)
-    return T
+                    _sift_up(hv, hk, pos, pc, c, cand, ordered)
+    return cnt
 
 
 # ---------------------------------------------------------------- set-up helpers

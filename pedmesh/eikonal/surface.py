@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..mesh.surface import SurfaceMesh
-from ..mesh.triangle_mesh import TriMesh
+from ..mesh.triangle_mesh import TriMesh, csr_ranges
 from . import fmm_kernels as _fmm
 from .direction import DirectionField
 from .fmm import (DEFAULT_CORNER_RADIUS, MAX_SPLIT_STEPS, EikonalSolver, _corner_rays, _csr,
@@ -31,7 +31,12 @@ __all__ = ["SurfaceEikonalSolver", "BuildingRoutes", "atlas_direction_field", "s
 
 class SurfaceEikonalSolver(EikonalSolver):
     """:class:`~pedmesh.eikonal.EikonalSolver` on a building's surface mesh (see the
-    module docstring); ``solve`` is the room solver's."""
+    module docstring); ``solve`` is the room solver's, with ties accepted in the order of
+    the vertices (:attr:`ordered`: :class:`BuildingRoutes` marches again only where the
+    crowd's costs can change the potential, which needs the march to be a function of its
+    costs)."""
+
+    ordered = True
 
     def __init__(self, surface: SurfaceMesh, exits: Sequence[str | int] | None = None,
                  corner_radius: float = DEFAULT_CORNER_RADIUS) -> None:
@@ -153,33 +158,63 @@ class _RegionRoom:
         self.walkable = walkable
 
 
-def stair_factors(surface: SurfaceMesh, phi: np.ndarray | None = None) -> np.ndarray:
+def stair_factors(surface: SurfaceMesh, phi: np.ndarray | None = None,
+                  triangles: np.ndarray | None = None) -> np.ndarray:
     """The desired speed per triangle as a fraction of the level's (m,): 1 on the levels,
     and on a stair its ``speed_up`` where it is walked up, ``speed_down`` where down. Which
     way a stair is walked is read from the gradient of ``phi`` (a potential, e.g. the
     distance to the exits, decreasing towards them) along the stair's slope; without
     ``phi`` everyone goes down (the exits below). A stair without rise is a flat connector,
-    walked at the level's speed."""
-    b = surface.building
+    walked at the level's speed. With ``triangles``: the factors of those only (the same
+    numbers: each triangle's is its own)."""
+    walked, up, down = _stair_speeds(surface)
+    if triangles is not None:
+        tris = np.asarray(triangles, np.int64)
+        out = np.ones(len(tris))
+        on = np.flatnonzero(walked[tris])
+        t = tris[on]
+        d = np.ones(len(t), bool) if phi is None else _walked_down(surface, phi, t)
+        out[on] = np.where(d, down[t], up[t])
+        return out
     out = np.ones(surface.n_triangles)
     for p in surface.pieces:
-        if p.kind != "stair":
-            continue
-        st = next(x for x in b.stairs if x.name == p.name)
         tris = p.triangles
-        if b.rise(st) == 0:
+        if not (len(tris) and walked[tris[0]]):
             continue
-        if phi is None:
-            down = np.ones(len(tris), bool)
-        else:
-            pts = surface.points[surface.triangles[tris]]  # (k, 3, 3)
-            dz = pts[:, :, 2] - pts[:, :, 2].mean(axis=1)[:, None]
-            f = np.asarray(phi, float)[surface.triangles[tris]]
-            dphi = f - f.mean(axis=1)[:, None]
-            # phi falls towards the exits: walking down the stair where phi grows with z
-            down = np.sum(dz * dphi, axis=1) >= 0.0
-        out[tris] = np.where(down, st.speed_down, st.speed_up)
+        d = np.ones(len(tris), bool) if phi is None else _walked_down(surface, phi, tris)
+        out[tris] = np.where(d, down[tris], up[tris])
     return out
+
+
+def _walked_down(surface: SurfaceMesh, phi: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """Whether each stair triangle ``tris`` is walked down: ``phi`` grows with the height
+    in it (it falls towards the exits)."""
+    pts = surface.points[surface.triangles[tris]]  # (k, 3, 3)
+    dz = pts[:, :, 2] - pts[:, :, 2].mean(axis=1)[:, None]
+    f = np.asarray(phi, float)[surface.triangles[tris]]
+    dphi = f - f.mean(axis=1)[:, None]
+    return np.sum(dz * dphi, axis=1) >= 0.0
+
+
+def _stair_speeds(surface: SurfaceMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(m,) per triangle: on a stair with a rise (walked at a stair speed), its speed up and
+    its speed down as fractions of the level's (1 elsewhere)."""
+    cache = surface._cache
+    if "stair_speeds" not in cache:
+        b = surface.building
+        walked = np.zeros(surface.n_triangles, bool)
+        up, down = np.ones(surface.n_triangles), np.ones(surface.n_triangles)
+        for p in surface.pieces:
+            if p.kind != "stair":
+                continue
+            st = next(x for x in b.stairs if x.name == p.name)
+            if b.rise(st) == 0:
+                continue
+            walked[p.triangles] = True
+            up[p.triangles] = st.speed_up
+            down[p.triangles] = st.speed_down
+        cache["stair_speeds"] = (walked, up, down)
+    return cache["stair_speeds"]
 
 
 def stair_costs(surface: SurfaceMesh, phi: np.ndarray | None = None, *,
@@ -210,29 +245,21 @@ def atlas_direction_field(atlas, phi: np.ndarray) -> DirectionField:
         df.vertex_directions = DirectionField(mesh, pm).vertex_directions[key]
     hv = _hinge_inner_vertices(atlas)
     if len(hv):
-        g = atlas.glued
-        ptr, idx = g.vertex_triangles
-        counts = np.diff(ptr)[hv]
-        ring = idx[np.concatenate([np.arange(ptr[v], ptr[v + 1]) for v in hv])]
-        w = g.areas[ring][:, None] * df.triangle_gradients[ring]
-        sums = np.add.reduceat(w, np.concatenate([[0], np.cumsum(counts)[:-1]]), axis=0)
-        norm = np.hypot(sums[:, 0], sums[:, 1])
-        e = np.where(norm[:, None] > 0, -sums / np.where(norm > 0, norm, 1.0)[:, None], 0.0)
-        e[~np.isfinite(pa[hv])] = 0.0
-        df.vertex_directions[hv] = e
+        df.vertex_directions[hv] = hinge_inner_directions(atlas, df.triangle_gradients,
+                                                          np.isfinite(pa[hv]))
         df._packed = None
-    _hinge_jambs(atlas, df, pa)
-    _inflow_hinges_as_walls(atlas, df)
+    P = df.packed
+    jr = _jamb_rows(atlas)
+    t, col, val = hinge_jambs(atlas, pa[jr[:, 2]], pa[jr[:, 3]])
+    P[t, col], P[t, col + 1] = val[:, 0], val[:, 1]
+    t, col, val = inflow_hinges(atlas, df.triangle_directions)
+    P[t, col], P[t, col + 1] = val[:, 0], val[:, 1]
     return df
 
 
-def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
-    """On the side of a stair edge where the route comes in over it (the direction of the
-    triangle across it points over it, to this side), the edge steers like a wall: the
-    component of the direction into it is removed near it (as at a wall,
-    :func:`pedmesh.eikonal.direction._interpolate`), so that nobody is steered onto a
-    stair against the way over it, e.g. while turning round the end of the wall beside
-    its foot."""
+def _hinge_edge_rows(atlas) -> tuple[np.ndarray, ...]:
+    """The stair edges of :attr:`~pedmesh.mesh.atlas.Atlas.open`: each edge ``he``, its
+    triangle ``t``, the edge's place ``loc`` in it and the triangle across it."""
     m = atlas.open
     cache = atlas.steer._cache
     if "hinge_edges" not in cache:
@@ -243,24 +270,31 @@ def _inflow_hinges_as_walls(atlas, df: DirectionField) -> None:
         both = g.edge_triangles[g.find_edges(m.edges[he])]
         across = np.where(both[:, 0] == t, both[:, 1], both[:, 0])
         cache["hinge_edges"] = (he, t, loc, across)
-    he, t, loc, across = cache["hinge_edges"]
-    if len(he) == 0:
-        return
-    n = m.edge_normals[he]  # out of the triangle's side, over the edge
-    d = df.triangle_directions[across]
+    return cache["hinge_edges"]
+
+
+def inflow_hinges(atlas, triangle_directions: np.ndarray, rows: np.ndarray | None = None):
+    """``(t, col, values)``: on the side of a stair edge where the route comes in over it
+    (the direction of the triangle across it, ``triangle_directions`` (m, 2), points over
+    it, to this side), the edge steers like a wall: its outward normal ``values`` (k, 2)
+    goes into columns ``col``, ``col + 1`` of row ``t`` of the packed steering table
+    (:func:`pedmesh.eikonal.direction._pack`), so that the component of the direction
+    into it is removed near it (as at a wall,
+    :func:`pedmesh.eikonal.direction._interpolate`) and nobody is steered onto a stair
+    against the way over it, e.g. while turning round the end of the wall beside its foot.
+    ``rows``: of those stair edges only (indices into :func:`_hinge_edge_rows`)."""
+    he, t, loc, across = _hinge_edge_rows(atlas)
+    if rows is not None:
+        he, t, loc, across = he[rows], t[rows], loc[rows], across[rows]
+    n = atlas.open.edge_normals[he]  # out of the triangle's side, over the edge
+    d = triangle_directions[across]
     inflow = np.sum(d * n, axis=1) < 0.0
-    P = df.packed
-    P[t[inflow], 12 + 2 * loc[inflow]] = n[inflow, 0]
-    P[t[inflow], 13 + 2 * loc[inflow]] = n[inflow, 1]
+    return t[inflow], 12 + 2 * loc[inflow], n[inflow]
 
 
-def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
-    """Where a stair edge ends on a wall that ends there too (:func:`_wall_ends`), in the
-    triangles of the end point's fan that do not touch the stair edge, the end point's
-    direction is the wall's, the way the potential falls along it (towards the stair edge
-    for those going onto it, away for those coming off it): a pedestrian who turns round
-    the corner (the wall's end) is steered along the wall, not into it (as at a door jamb,
-    :mod:`pedmesh.eikonal.direction`)."""
+def _jamb_rows(atlas) -> np.ndarray:
+    """(k, 4) rows (triangle, local corner, jamb vertex, the wall's other vertex) of
+    :func:`hinge_jambs`."""
     cache = atlas.steer._cache
     if "hinge_jambs" not in cache:
         m = atlas.open
@@ -277,18 +311,67 @@ def _hinge_jambs(atlas, df: DirectionField, phi: np.ndarray) -> None:
                     if not touches[t]:
                         rows.append((t, int(np.flatnonzero(m.triangles[t] == v)[0]), v, u))
         cache["hinge_jambs"] = np.array(rows, np.int64).reshape(-1, 4)
-    rows = cache["hinge_jambs"]
-    if len(rows) == 0:
-        return
-    P = df.packed
+    return cache["hinge_jambs"]
+
+
+def hinge_jambs(atlas, phi_v: np.ndarray, phi_u: np.ndarray, rows: np.ndarray | None = None):
+    """``(t, col, values)``: where a stair edge ends on a wall that ends there too
+    (:func:`_wall_ends`), in the triangles of the end point's fan that do not touch the
+    stair edge, the end point's direction (columns ``col``, ``col + 1`` of row ``t`` of
+    the packed steering table) is the wall's, the way the potential falls along it
+    (towards the stair edge for those going onto it, away for those coming off it): a
+    pedestrian who turns round the corner (the wall's end) is steered along the wall, not
+    into it (as at a door jamb, :mod:`pedmesh.eikonal.direction`). ``phi_v``, ``phi_u``:
+    the potential at the rows' jamb vertices and at the walls' other ends (of the rows
+    ``rows`` of :func:`_jamb_rows` only, if given)."""
+    jr = _jamb_rows(atlas)
+    if rows is not None:
+        jr = jr[rows]
     pts = atlas.open.points
-    t, loc, v, u = rows.T
+    t, loc, v, u = jr.T
     d = pts[v] - pts[u]
     d /= np.hypot(d[:, 0], d[:, 1])[:, None]
-    d = np.where((phi[v] <= phi[u])[:, None], d, -d)  # (the way phi falls along the wall)
-    ok = np.isfinite(phi[v]) & np.isfinite(phi[u])
-    P[t[ok], 6 + 2 * loc[ok]] = d[ok, 0]
-    P[t[ok], 7 + 2 * loc[ok]] = d[ok, 1]
+    d = np.where((phi_v <= phi_u)[:, None], d, -d)  # (the way phi falls along the wall)
+    ok = np.isfinite(phi_v) & np.isfinite(phi_u)
+    return t[ok], 6 + 2 * loc[ok], d[ok]
+
+
+def hinge_inner_directions(atlas, triangle_gradients: np.ndarray, finite: np.ndarray,
+                           which: np.ndarray | None = None) -> np.ndarray:
+    """(k, 2) the directions at the vertices along the stair edges
+    (:func:`_hinge_inner_vertices`, or those of them at the indices ``which``): the
+    descent of the area-weighted gradients ``triangle_gradients`` of the triangles around
+    each on both sides of its edge, 0 where the potential is not ``finite`` (k,). Each
+    vertex's is computed alone: a subset's are all's, bit for bit."""
+    ring, ptr = _hinge_rings(atlas)
+    if which is None:
+        counts = np.diff(ptr)
+        rows = ring
+    else:
+        counts = ptr[which + 1] - ptr[which]
+        rows = ring[csr_ranges(ptr[which], counts)]
+    g = atlas.glued
+    w = g.areas[rows][:, None] * triangle_gradients[rows]
+    sums = np.add.reduceat(w, np.concatenate([[0], np.cumsum(counts)[:-1]]), axis=0)
+    norm = np.hypot(sums[:, 0], sums[:, 1])
+    e = np.where(norm[:, None] > 0, -sums / np.where(norm > 0, norm, 1.0)[:, None], 0.0)
+    e[~finite] = 0.0
+    return e
+
+
+def _hinge_rings(atlas) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles around each vertex of :func:`_hinge_inner_vertices` on both sides of
+    its stair edge, CSR ``(triangles, ptr)``."""
+    cache = atlas.steer._cache
+    if "hinge_rings" not in cache:
+        hv = _hinge_inner_vertices(atlas)
+        ptr, idx = atlas.glued.vertex_triangles
+        counts = np.diff(ptr)[hv]
+        ring = idx[csr_ranges(ptr[hv], counts)]
+        rptr = np.zeros(len(hv) + 1, np.int64)
+        np.cumsum(counts, out=rptr[1:])
+        cache["hinge_rings"] = (ring, rptr)
+    return cache["hinge_rings"]
 
 
 def _hinge_inner_vertices(atlas) -> np.ndarray:

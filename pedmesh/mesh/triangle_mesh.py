@@ -83,6 +83,18 @@ def vertex_triangle_csr(triangles: np.ndarray, n_points: int) -> tuple[np.ndarra
     return indptr, indices
 
 
+def csr_ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """The indices ``starts[k], ..., starts[k] + counts[k] - 1`` of every k, one run after
+    the other (the entries of some rows of a CSR list: ``idx[csr_ranges(ptr[rows],
+    ptr[rows + 1] - ptr[rows])]``)."""
+    counts = np.asarray(counts, np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, np.int64)
+    before = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    return np.repeat(np.asarray(starts, np.int64) - before, counts) + np.arange(total)
+
+
 @dataclass(frozen=True, eq=False)
 class TriMesh:
     """A 2-D triangle mesh of a room with tagged boundary edges.

@@ -114,9 +114,9 @@ def test_forces_act_across_a_stair_edge():
     co = np.zeros(2, np.int64)
     K.build_cells(x, 2, sim._cx0, sim._cy0, sim._cinv, sim._cnx, sim._cny, cs, co)
     hi, hj, hs = np.zeros(4, np.int64), np.zeros(4, np.int64), np.zeros((4, 2))
-    nh = hinge_pairs(x, 2, tri, a.glued.piece, sim._hseg, sim._hfrom, sim._hto, sim._hshift,
-                     1.0, cs, co, sim._cx0, sim._cy0, sim._cinv, sim._cnx, sim._cny,
-                     hi, hj, hs)
+    nh = hinge_pairs(x, 2, tri, a.glued.piece, sim._hseg, sim._hptr, sim._hidx, sim._hto,
+                     sim._hshift, 1.0, cs, co, sim._cx0, sim._cy0, sim._cinv, sim._cnx,
+                     sim._cny, hi, hj, hs)
     assert nh == 1
     d = x[hi[0]] + hs[0] - x[hj[0]]
     assert np.hypot(*d) == pytest.approx(math.hypot(0.45, 0.1), abs=1e-9)

@@ -104,9 +104,9 @@ class SurfaceSimulation(Simulation):
         self._hinge_shift[h[:, 0].astype(np.int64)] = h[:, 3:5]
         self._hinge_to = np.full(len(atlas.open.exit_names), -1, np.int64)
         self._hinge_to[h[:, 0].astype(np.int64)] = h[:, 2].astype(np.int64)
+        self.n_crossings = 0
         super().__init__(atlas.open, positions, velocities, **kwargs)
         self._hinges = True
-        self.n_crossings = 0
         #: (t [s], from piece, to piece) of every crossing of a stair edge not yet read
         #: (:class:`BuildingSFMRun` reads them into its stair use)
         self.crossing_log: list[tuple[float, int, int]] = []
@@ -133,78 +133,180 @@ class SurfaceSimulation(Simulation):
         self._hfrom = np.array(frm, np.int64)
         self._hto = np.array(to, np.int64)
         self._hshift = np.array(shift, float).reshape(-1, 2)
+        # the edges by their from piece (CSR, each piece's in increasing order)
+        n_pieces = len(self.atlas.surface.pieces)
+        self._hptr = np.zeros(n_pieces + 1, np.int64)
+        np.cumsum(np.bincount(self._hfrom, minlength=n_pieces), out=self._hptr[1:])
+        self._hidx = np.argsort(self._hfrom, kind="stable").astype(np.int64)
         cap = max(64, 8 * self.n_initial // 10)
         self._hbuf = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 2)))
+        from .simulation import PAIR_SKIN
+
+        #: [m] the radius of the pair search across stair edges (the force and density
+        #: cut-offs plus the pair list's skin)
+        self._hinge_rc = max(self.rc_f, self.rc_d) + PAIR_SKIN
 
     def _rk3(self, n: int, dt: float, tri_stage: np.ndarray) -> int:
         """The room's step, with the pairs across stair edges listed first (within the
         force and density cut-offs plus the pair list's skin; the list serves the step's
         three stages, as the room's does unless someone moves more than half the skin)."""
         from .hinge_kernels import hinge_pairs
-        from .simulation import PAIR_SKIN
 
+        if self._active is not None and self._refreshed != self.n_crossings:
+            self._refresh_steering()  # (someone crossed onto another piece)
         self._build_cells()
-        rc = max(self.rc_f, self.rc_d) + PAIR_SKIN
+        rc = self._hinge_rc
         while True:
             hi, hj, hs = self._hbuf
             nh = hinge_pairs(self.x, n, self.tri, self.atlas.glued.piece, self._hseg,
-                             self._hfrom, self._hto, self._hshift, rc, self._cell_start,
-                             self._cell_order, self._cx0, self._cy0, self._cinv, self._cnx,
-                             self._cny, hi, hj, hs)
+                             self._hptr, self._hidx, self._hto, self._hshift, rc,
+                             self._cell_start, self._cell_order, self._cx0, self._cy0,
+                             self._cinv, self._cnx, self._cny, hi, hj, hs)
             if nh >= 0:
                 break
             cap = 2 * len(hi)
             self._hbuf = (np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 2)))
         self._hinge_pairs = (hi, hj, hs, nh)
-        return super()._rk3(n, dt, tri_stage)
+        return super()._rk3(n, dt, tri_stage, cells_built=True)
 
     # ------------------------------------------------------------------ routes
     def _set_routes(self, reroute: bool, desired_velocity) -> None:
+        from ...eikonal import active
         from ...eikonal.surface import BuildingRoutes
 
         self.reroute = bool(reroute)
         self._const_u = np.zeros(2)
         self._use_const = False
-        self.phi = np.zeros(self.mesh.n_points)
+        self.surface_phi = np.zeros(self.atlas.surface.n_points)
         self._next_route = 0.0
         self._solver = BuildingRoutes(self.atlas)
         # one more solver per distinct set of target exits (pedmesh.population)
         self._group_solvers = [None] + [BuildingRoutes(self.atlas, exits=list(t))
                                         for t in self._targets[1:]]
         self._set_route_density()
+        a = self.atlas
+        #: the route cost's factor near walls at the surface's vertices (the nearer wall's
+        #: of a stair edge's two copies), None without route_clearance
+        self._wall_s = None
+        if self._route_wall is not None:
+            self._wall_s = np.ones(a.surface.n_points)
+            np.maximum.at(self._wall_s, a.to_surface, self._route_wall)
+        #: the routes re-solved where the crowd can change them (pedmesh.eikonal.active),
+        #: one per route group, their steering tables stacked in _dpack; None: the whole
+        #: building at every solve
+        self._active = None
+        if active.ACTIVE_SET:
+            cost0 = self.params.speed.route_cost(np.zeros(a.surface.n_points))
+            if self._wall_s is not None:
+                cost0 = cost0 * self._wall_s
+            groups = [self._solver] + self._group_solvers[1:]
+            m = self.mesh.n_triangles
+            from ...eikonal.direction import PACK_WIDTH
+
+            self._dpack = np.empty((len(groups) * m, PACK_WIDTH))
+            self._active = [active.ActiveRoutes(g, cost0, self._dpack, k * m)
+                            for k, g in enumerate(groups)]
         self._route()
+
+    @property
+    def phi(self) -> np.ndarray:
+        """(n,) the route potential at the atlas's vertices (each copy of a surface vertex
+        at its value, :attr:`surface_phi`)."""
+        return self.surface_phi[self.atlas.to_surface]
 
     def _route(self) -> None:
         """Re-solve the route potential on the surface with cost 1/U_e(rho) at its vertices
         (each stair at its speed up or down), and the steering table on the atlas with the
-        stair speed factors."""
+        stair speed factors: where the crowd can change them (:attr:`_active`), or the
+        whole building."""
         from ...eikonal.direction import scale_packed
 
         t0 = time.perf_counter()
         if self.reroute or self.steps == 0:
-            a = self.atlas
-            rho_atlas = self.route_density()
-            rho_v = np.zeros(a.surface.n_points)
-            np.maximum.at(rho_v, a.to_surface, rho_atlas)  # (the denser copy of a hinge vertex)
-            cost = self.params.speed.route_cost(rho_v)
-            if self._route_wall is not None:  # (the denser copy's is the nearer wall's)
-                wall = np.ones(a.surface.n_points)
-                np.maximum.at(wall, a.to_surface, self._route_wall)
-                cost = cost * wall
-            phi_s, field_, factors = self._solver.solve(cost)
-            self.phi = phi_s[a.to_surface]
-            self.surface_phi = phi_s
-            self._dpack = scale_packed(field_.packed, factors)
-            if len(self._targets) > 1:  # a steering table per target group, stacked
-                tables = [self._dpack]
-                for g in self._group_solvers[1:]:
-                    _, f_g, fac_g = g.solve(cost)
-                    tables.append(scale_packed(f_g.packed, fac_g))
-                self._dpack = np.ascontiguousarray(np.concatenate(tables, axis=0))
+            if self._active is not None:
+                v, rho = self._route_density_near()
+                cost = self.params.speed.route_cost(rho)
+                if self._wall_s is not None:
+                    cost = cost * self._wall_s[v]
+                phis = [r.route(v, cost) for r in self._active]
+                self.surface_phi = phis[0]
+                self._refresh_steering()
+            else:
+                a = self.atlas
+                rho_atlas = self.route_density()
+                rho_v = np.zeros(a.surface.n_points)
+                np.maximum.at(rho_v, a.to_surface, rho_atlas)  # (the denser copy)
+                cost = self.params.speed.route_cost(rho_v)
+                if self._wall_s is not None:
+                    cost = cost * self._wall_s
+                phi_s, field_, factors = self._solver.solve(cost)
+                self.surface_phi = phi_s
+                self._dpack = scale_packed(field_.packed, factors)
+                if len(self._targets) > 1:  # a steering table per target group, stacked
+                    tables = [self._dpack]
+                    for g in self._group_solvers[1:]:
+                        _, f_g, fac_g = g.solve(cost)
+                        tables.append(scale_packed(f_g.packed, fac_g))
+                    self._dpack = np.ascontiguousarray(np.concatenate(tables, axis=0))
             self.timers.routes += 1
         ri = self.numerics.route_interval
         self._next_route = self.t + ri if ri > 0 else self.t
         self.timers.routing += time.perf_counter() - t0
+
+    def _refresh_steering(self) -> None:
+        """Bring the steering table up to date (:meth:`~pedmesh.eikonal.active.
+        ActiveRoutes.refresh`) where the crowd can be before the next route solve or the
+        next crossing of a stair edge: on the (flat groups of) pieces people stand on and
+        those across their stair edges."""
+        self._refreshed = self.n_crossings
+        if self._active is None or self.n == 0:
+            return
+        units = self._active[0].units_near(self.tri[: self.n])
+        for r in self._active:
+            r.refresh(units)
+
+    def _route_density_near(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(vertices, rho)``: the surface vertices where the route's crowd density
+        (:meth:`route_density`) may be above 0 and the density there (the denser copy of
+        a vertex on a stair edge), the same numbers as :meth:`route_density`'s, which is 0
+        at every other vertex; found near the crowd, not by going through the building."""
+        a = self.atlas
+        if self._route_grid is not None:
+            pts, rho = self._route_grid.near(self.x[: self.n])
+        else:  # the kernel density of width R: the points within a cell of someone's
+            pts = self._points_near_crowd()
+            rho = self.density_at(a.open.points[pts])
+        sv = a.to_surface[pts]
+        v, inv = np.unique(sv, return_inverse=True)
+        out = np.zeros(len(v))
+        np.maximum.at(out, inv, rho)
+        return v, out
+
+    def _points_near_crowd(self) -> np.ndarray:
+        """The atlas points in the neighbour grid's cells next to or in one with someone in
+        it (the cells are no smaller than the density's cut-off: the kernel density is 0 at
+        every other point)."""
+        if not hasattr(self, "_cell_points"):
+            p = self.mesh.points
+            ci = np.clip(((p[:, 0] - self._cx0) * self._cinv).astype(np.int64), 0,
+                         self._cnx - 1)
+            cj = np.clip(((p[:, 1] - self._cy0) * self._cinv).astype(np.int64), 0,
+                         self._cny - 1)
+            key = ci * self._cny + cj
+            ptr = np.zeros(self._cnx * self._cny + 1, np.int64)
+            np.cumsum(np.bincount(key, minlength=self._cnx * self._cny), out=ptr[1:])
+            self._cell_points = (ptr, np.argsort(key, kind="stable"))
+        from ...mesh.triangle_mesh import csr_ranges
+
+        x = self.x[: self.n]
+        ci = np.clip(((x[:, 0] - self._cx0) * self._cinv).astype(np.int64), 0, self._cnx - 1)
+        cj = np.clip(((x[:, 1] - self._cy0) * self._cinv).astype(np.int64), 0, self._cny - 1)
+        di, dj = np.meshgrid([-1, 0, 1], [-1, 0, 1])
+        ni, nj = ci[:, None] + di.ravel(), cj[:, None] + dj.ravel()
+        ok = (ni >= 0) & (ni < self._cnx) & (nj >= 0) & (nj < self._cny)
+        cells = np.unique(ni[ok] * self._cny + nj[ok])
+        ptr, order = self._cell_points
+        return np.sort(order[csr_ranges(ptr[cells], ptr[cells + 1] - ptr[cells])])
 
     # ------------------------------------------------------------------ stair edges
     def _cross_hinges(self, n: int) -> None:

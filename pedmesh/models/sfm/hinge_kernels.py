@@ -32,12 +32,14 @@ def _seg_dist2(px, py, ax, ay, bx, by):
 
 
 @nb.njit(cache=True)
-def hinge_pairs(x, n, tri, piece, hseg, hfrom, hto, hshift, rc, cell_start, cell_order,
+def hinge_pairs(x, n, tri, piece, hseg, hptr, hidx, hto, hshift, rc, cell_start, cell_order,
                 cx0, cy0, cinv, cnx, cny, hi, hj, hs):
     """The pairs (i, j) closer than ``rc`` [m] across a stair edge, with i on the edge's
-    side ``hfrom[h]`` and j on ``hto[h]`` (each edge listed from one side only, so every
-    pair once), into ``hi``, ``hj`` and their shifts ``hs`` (k, 2) [m] (x_i + hs is i as
-    seen from j's side). ``hseg`` (h, 4): each edge's end points on the ``hfrom`` side;
+    side (its *from* piece) and j on ``hto[h]`` (each edge listed from one side only, so
+    every pair once), into ``hi``, ``hj`` and their shifts ``hs`` (k, 2) [m] (x_i + hs is
+    i as seen from j's side). ``hseg`` (h, 4): each edge's end points on the from side;
+    ``hptr``, ``hidx``: the edges of each piece as their from piece (CSR by piece, each
+    piece's in increasing order: the pairs in the order of going through all edges);
     ``piece`` (m,): the piece of each triangle, ``tri`` the pedestrians' triangles; the
     cell list (``cell_start``, ``cell_order`` on a grid at ``cx0``, ``cy0`` with cells of
     1/``cinv`` [m]) must hold the positions ``x``. Returns the number of pairs, -1 if the
@@ -48,9 +50,8 @@ def hinge_pairs(x, n, tri, piece, hseg, hfrom, hto, hshift, rc, cell_start, cell
     m = 0
     for i in range(n):
         pi_ = piece[tri[i]]
-        for h in range(hseg.shape[0]):
-            if hfrom[h] != pi_:
-                continue
+        for q in range(hptr[pi_], hptr[pi_ + 1]):
+            h = hidx[q]
             if _seg_dist2(x[i, 0], x[i, 1], hseg[h, 0], hseg[h, 1], hseg[h, 2],
                           hseg[h, 3]) >= rc2:
                 continue

@@ -78,6 +78,45 @@ def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
         fill[c] += 1
 
 
+@nb.njit(cache=True)
+def update_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
+    """:func:`build_cells` into arrays that hold a cell list already (of other positions,
+    from either function; zeros: of nobody), the same result: only the entries of
+    ``cell_start`` between the lowest and the highest cell with someone in it, then or now,
+    are rewritten (below them it is 0, above them the head count), so that the work grows
+    with the crowd's extent, not with the grid (a building's atlas is mostly empty)."""
+    nc = nx * ny
+    prev = cell_start[nc]
+    cell_of = np.empty(n, np.int64)
+    lo, hi = nc, -1  # the cells with someone in them now
+    for i in range(n):
+        c = _cell_of(x[i, 0], x[i, 1], x0, y0, inv_cell, nx, ny)
+        cell_of[i] = c
+        lo = min(lo, c)
+        hi = max(hi, c)
+    a, b = lo, hi
+    if prev > 0:  # and then: the first with cell_start[c + 1] > 0, the last with < prev
+        a = min(a, np.searchsorted(cell_start, 0, side="right") - 1)
+        b = max(b, np.searchsorted(cell_start, prev, side="left") - 1)
+    if n != prev:
+        b = nc - 1
+    if b < a:
+        return
+    for c in range(a + 1, b + 2):
+        cell_start[c] = 0
+    for i in range(n):
+        cell_start[cell_of[i] + 1] += 1
+    for c in range(a + 1, b + 1):
+        cell_start[c + 1] += cell_start[c]
+    if n == 0:
+        return
+    fill = cell_start[lo:hi + 1].copy()
+    for i in range(n):
+        c = cell_of[i] - lo
+        cell_order[fill[c]] = i
+        fill[c] += 1
+
+
 # ------------------------------------------------------------------ pair list + density
 @nb.njit(cache=True, inline="always")
 def _stencil_cell(ci, cj, q, nx, ny):
@@ -207,7 +246,6 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
     cap = pi.shape[0]
-    nc = nx * ny
     nblocks = lay.shape[0] - 1
     counts = np.zeros((nblocks, 3), np.int64)  # near, far, 1 if the share overflowed
     # several blocks sum the densities by place in the cell order (a block's own places
@@ -215,7 +253,13 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
     many = nblocks > 1
     racc = np.empty(n if with_density and many else 0)
     acc = racc if many else rho
-    cloc = np.zeros((nc, 2), np.int64)  # near and far pairs of the block before a cell
+    # each block's halo starts at cell hc[b]; the near and far pairs before it in the block
+    # that holds it: halo[b] (only cells with someone in them are visited: on a large grid,
+    # e.g. a building's atlas, most are empty)
+    hc = np.empty(nblocks, np.int64)
+    for b in range(nblocks):
+        hc[b] = max(lay[b, 0] - ny - 1, 0)
+    halo = np.zeros((nblocks, 2), np.int64)
     for bb in nb.prange(nblocks):
         b = np.int64(bb)
         c0 = lay[b, 0]
@@ -248,13 +292,19 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
                                 acc[b2 if many else j] += w0 * math.exp(-d2 * invR2) * wj
         m_near = 0
         m_far = 0
-        for c in range(c0, c1):
-            cloc[c, 0] = m_near
-            cloc[c, 1] = m_far
+        pb = 0  # the next halo start not yet passed
+        c = c0
+        while c < c1:
             s0 = cell_start[c]
             s1 = cell_start[c + 1]
-            if s0 == s1:
+            if s0 == s1:  # an empty cell: on to the next one with someone in it
+                c += np.searchsorted(cell_start[c:c1 + 1], s0, side="right") - 1
                 continue
+            while pb < nblocks and hc[pb] <= c:
+                if hc[pb] >= c0:
+                    halo[pb, 0] = m_near
+                    halo[pb, 1] = m_far
+                pb += 1
             ci = c // ny
             cj = c % ny
             for q in range(5):
@@ -293,6 +343,12 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
                                 pj[lo + size - m_far] = j
                     if with_density:
                         acc[a if many else i] += rhoi
+            c += 1
+        while pb < nblocks and hc[pb] < c1:
+            if hc[pb] >= c0:
+                halo[pb, 0] = m_near
+                halo[pb, 1] = m_far
+            pb += 1
         counts[b, 0] = m_near
         counts[b, 1] = m_far
         counts[b, 2] = 1 if m_near + m_far > size else 0
@@ -344,8 +400,8 @@ def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, r
             lay[b, 4] = lay[b, 2]
             continue
         h = _block_of(lay, hc)
-        lay[b, 3] = lay[h, 1] + cloc[hc, 0]
-        lay[b, 4] = lay[h, 2] + cloc[hc, 1]
+        lay[b, 3] = lay[h, 1] + halo[b, 0]
+        lay[b, 4] = lay[h, 2] + halo[b, 1]
     return tot_near, tot_far
 
 
@@ -899,7 +955,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
              const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages,
-             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge, nblocks=1):
+             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge, nblocks=1, cells_built=False):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
@@ -912,13 +968,16 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
 
     The pair work is split into ``nblocks`` blocks of cells (:func:`pair_blocks`; one per
     thread, the caller's ``numba.get_num_threads()``); the result is the same for any.
-    ``hinge``: the pairs across a building's stair edges (:func:`accel`).
+    ``hinge``: the pairs across a building's stair edges (:func:`accel`). ``cells_built``:
+    the cell list already holds the positions ``x`` (a building's step lists its pairs
+    across stair edges from it first).
     """
     every = density_stages == 3
     # with the density held over the step it is computed while listing the pairs, and the
     # list needs the near pairs only (those within the force cut-off plus the skin)
     rc_list = max(rc_f + skin, rc_d + skin) if every else rc_f + skin
-    build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
+    if not cells_built:
+        build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
     lay, pos = pair_blocks(n, cell_start, cell_order, cnx, cny, nblocks)
     cone = space[6:8]
     n_near, n_far = list_pairs(x, n, cell_start, cell_order, cnx, cny, rc_list, rc_f + skin,

@@ -502,8 +502,8 @@ class Simulation:
     def _build_cells(self) -> None:
         from . import kernels as K
 
-        K.build_cells(self.x, self.n, self._cx0, self._cy0, self._cinv, self._cnx, self._cny,
-                      self._cell_start, self._cell_order)
+        K.update_cells(self.x, self.n, self._cx0, self._cy0, self._cinv, self._cnx, self._cny,
+                       self._cell_start, self._cell_order)
 
     def vertex_density(self) -> np.ndarray:
         """Gaussian kernel density (eq3, eq4) of the crowd at the mesh vertices [ped/m^2]."""
@@ -594,7 +594,9 @@ class Simulation:
         least = PARALLEL_MIN_PEOPLE_TBB if layer == "tbb" else PARALLEL_MIN_PEOPLE
         return most if n >= least else 1
 
-    def _rk3(self, n: int, dt: float, tri_stage: np.ndarray) -> int:
+    def _rk3(self, n: int, dt: float, tri_stage: np.ndarray, cells_built: bool = False) -> int:
+        """One step of the kernels (:func:`~pedmesh.models.sfm.kernels.rk3_step`);
+        ``cells_built``: the cell list holds the positions already."""
         import numba
 
         from . import kernels as K
@@ -610,7 +612,7 @@ class Simulation:
             self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
             self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
             self.toff, self._tbuf, self._space, self._rs, self._wmap, self._wgeo, self._cf,
-            self._ue, self._hinge_pairs, numba.get_num_threads(),
+            self._ue, self._hinge_pairs, numba.get_num_threads(), cells_built,
         )
 
     def step(self) -> int:
