@@ -220,8 +220,9 @@ class ActiveRoutes:
 
     def _set_steering(self, table: np.ndarray | None, offset: int) -> None:
         """The direction field and steering table of the first phase's potential (kept in
-        ``table`` from row ``offset``), and per flat group (:attr:`~pedmesh.mesh.surface.SurfaceMesh.
-        piece_group`, the *units* of :meth:`refresh`): its triangles, its atlas vertices,
+        ``table`` from row ``offset``), and per flat group
+        (:attr:`~pedmesh.mesh.surface.SurfaceMesh.piece_group`, the *units* of
+        :meth:`refresh`): its triangles, its atlas vertices,
         the triangles whose gradients its rows read, its vertices along stair edges, its
         jamb and stair edge rows, and the groups across its stair edges."""
         atlas, s = self.atlas, self.surface
