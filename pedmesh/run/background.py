@@ -55,14 +55,22 @@ def use_background(threads: int | None, writer: Any) -> bool:
     return int(threads) > 1
 
 
+#: types passed on as they are (nothing in them the model could change)
+_PLAIN = (float, int, str, bool, type(None), np.floating, np.integer)
+
+
 def _own(value: Any) -> Any:
     """``value`` with its arrays copied (also those in a dict or a list), so that the model
     may change its own before the call is written."""
+    if isinstance(value, _PLAIN):
+        return value
     if isinstance(value, np.ndarray):
         return value.copy()
     if isinstance(value, Mapping):
         return {k: _own(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
+        if all(isinstance(v, _PLAIN) for v in value):  # (a call's numbers, a sample's)
+            return value if isinstance(value, tuple) else type(value)(value)
         return type(value)(_own(v) for v in value)
     return value
 
@@ -108,7 +116,11 @@ class BackgroundWriter:
     def __getattr__(self, name: str) -> Any:
         attr = getattr(self._writer, name)
         if name in WRITES:
-            return lambda *args, **kwargs: self._submit(attr, args, kwargs)
+            def submit(*args, **kwargs):
+                self._submit(attr, args, kwargs)
+
+            self.__dict__[name] = submit  # (found there from now on, without this call)
+            return submit
         if callable(attr) and not name.startswith("_") and name not in WRITER_METHODS:
             # (a write method nobody declared would run here, out of order with the queue)
             raise TypeError(f"{type(self._writer).__name__}.{name} is not a method of the "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import time
@@ -322,6 +323,7 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
     bar = None
     frame = 0
     status, error = "failed", None
+    kept = None
     try:
         run = _build(plan.entry, plan.room, plan.mesh, plan.parameters, plan.options)
         params = run.parameters()
@@ -336,7 +338,13 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
             writer = BackgroundWriter(writer)  # (the steps on threads, the output beside)
         writer.start(extra)
         bar = _progress_bar(name, run.n_initial, quiet)
-        frame = _loop(run, writer, plan.t_end, bar)
+        if plan.safety and getattr(writer, "dir", None) is not None:
+            kept = _safety_kept()  # (the density frames for the measures, as written)
+            loop_writer = _KeepDensity(writer, kept) if kept is not None else writer
+        else:
+            loop_writer = writer
+        with _stepping(run):
+            frame = _loop(run, loop_writer, plan.t_end, bar)
         if isinstance(writer, BackgroundWriter):
             writer.drain()  # (a write error is the run's)
         status = "finished" if run.done else "stopped at t_end"
@@ -362,7 +370,7 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
             if plan.safety:
                 if isinstance(writer, BackgroundWriter):  # (the measures read the output)
                     writer.drain(raise_error=False)  # (an error: the writer's finish says)
-                result["safety"] = _safety(plan, writer, result)
+                result["safety"] = _safety(plan, writer, result, kept)
         summary = writer.finish(status=status, error=error,
                                 t_stop=run.t if run is not None else 0.0, frames=frame,
                                 wall_time_s=wall, **result)
@@ -371,10 +379,46 @@ def execute(plan: RunPlan, writer, *, quiet: bool = False, where: str = "the out
     return summary
 
 
-def _safety(plan: RunPlan, writer, result: Mapping[str, Any]) -> dict:
-    """The run's crowd-safety measures (:mod:`pedmesh.run.safety`) from what it wrote, and
-    safety.vtu beside them; an error is recorded ({"error": ...}), never raised, so that
-    the measures cannot fail a run (not even a Ctrl-C while they are computed)."""
+def _stepping(run: RunModel):
+    """The model's context for its steps, if it has one (``run.stepping()``: a continuum
+    model sets numba's threads and BLAS once for the whole loop instead of at every step,
+    :meth:`pedmesh.models.continuum.solver.FVController.stepping`), else none."""
+    stepping = getattr(run, "stepping", None)
+    return stepping() if callable(stepping) else contextlib.nullcontext()
+
+
+def _safety_kept():
+    """A :class:`~pedmesh.run.safety.KeptDensity` for the run's density frames (None if
+    the safety measures cannot be imported: they then say so in the summary)."""
+    try:
+        from .safety import KeptDensity
+    except Exception:
+        return None
+    return KeptDensity()
+
+
+class _KeepDensity:
+    """``writer`` (any writer of the protocol) whose density frames are also kept in
+    ``kept`` (:class:`~pedmesh.run.safety.KeptDensity`), so that the safety measures at the
+    end need not read them back from their files; every other attribute is the writer's."""
+
+    def __init__(self, writer, kept) -> None:
+        self._writer = writer
+        self._kept = kept
+
+    def density_frame(self, t: float, mesh, point_data=None, cell_data=None) -> None:
+        self._writer.density_frame(t, mesh, point_data=point_data, cell_data=cell_data)
+        self._kept.add(t, mesh, cell_data)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._writer, name)
+
+
+def _safety(plan: RunPlan, writer, result: Mapping[str, Any], kept=None) -> dict:
+    """The run's crowd-safety measures (:mod:`pedmesh.run.safety`) from what it wrote (its
+    density frames' numbers from ``kept`` where it holds them all), and safety.vtu beside
+    them; an error is recorded ({"error": ...}), never raised, so that the measures cannot
+    fail a run (not even a Ctrl-C while they are computed)."""
     try:
         from .safety import safety_from_memory, safety_measures
 
@@ -385,7 +429,7 @@ def _safety(plan: RunPlan, writer, result: Mapping[str, Any]) -> dict:
         n0 = None if "positions" in plan.options else result.get("n_initial")
         if getattr(writer, "dir", None) is not None:
             return safety_measures(writer.dir, room, plan.mesh, n_initial=n0,
-                                   write_fields=True)
+                                   write_fields=True, kept=kept)
         return safety_from_memory(writer, room, plan.mesh, n_initial=n0)
     except KeyboardInterrupt:
         return {"error": "interrupted while the safety measures were computed"}

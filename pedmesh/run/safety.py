@@ -24,8 +24,8 @@ from ..io import run_folder as F
 from ..io.run_folder import good_summary, json_safe
 from .results import RunResult
 
-__all__ = ["safety_measures", "safety_from_memory", "write_safety_vtu", "SAFETY_VTU",
-           "SAFETY_KEYS", "LOS_SCALE"]
+__all__ = ["safety_measures", "safety_from_memory", "write_safety_vtu", "KeptDensity",
+           "SAFETY_VTU", "SAFETY_KEYS", "LOS_SCALE"]
 
 #: the file of the per-cell safety maps in a run folder
 SAFETY_VTU = F.SAFETY_VTU
@@ -58,6 +58,53 @@ class _RunData:
     R: float  # [m] the kernel width of the particle model's density
 
 
+class KeptDensity:
+    """The cell densities ``rho`` of a run's density frames kept in memory as the run
+    writes them (a continuum's; the run driver keeps them), so that :func:`safety_measures`
+    need not read every frame back from its file at the end of the run (125 frames of
+    Example 2: 0.1 s). The frames' files hold the very same numbers (float64 and float32
+    arrays are written as they are); the kept ones are only used where they are the frames
+    density.pvd lists, at the same times in the same order (else, e.g. after a write
+    failed, the files are read). Nothing is kept of frames without a cell field ``rho``
+    (a particle model's), of frames on different meshes, or beyond ``max_bytes``."""
+
+    #: [bytes] the most kept (beyond it the files are read, as without it)
+    MAX_BYTES = 1 << 28
+
+    def __init__(self, max_bytes: int | None = None) -> None:
+        self.max_bytes = self.MAX_BYTES if max_bytes is None else int(max_bytes)
+        self.mesh = None
+        #: (t [s], rho (m,)) of each frame; None once a frame could not be kept
+        self.frames: list[tuple[float, np.ndarray]] | None = []
+        self._bytes = 0
+
+    def add(self, t: float, mesh, cell_data) -> None:
+        """Keep frame ``t`` [s] on ``mesh`` (the arguments of a writer's ``density_frame``;
+        a copy of its ``rho``)."""
+        if self.frames is None:
+            return
+        rho = (cell_data or {}).get("rho")
+        rho = rho if isinstance(rho, np.ndarray) else None
+        if (rho is None or rho.ndim != 1 or rho.dtype not in (np.float64, np.float32)
+                or (self.mesh is not None and mesh is not self.mesh)
+                or len(rho) != getattr(mesh, "n_triangles", -1)
+                or self._bytes + rho.nbytes > self.max_bytes):
+            self.frames = None  # (from here on the files are read)
+            return
+        self.mesh = mesh
+        self.frames.append((float(t), rho.copy()))
+        self._bytes += rho.nbytes
+
+    def matching(self, frames) -> list[np.ndarray] | None:
+        """The kept densities of ``frames`` ((t [s], file) of density.pvd), if they are
+        those kept (the same times in the same order), else None."""
+        kept = self.frames
+        if not kept or len(kept) != len(frames) or any(
+                a != b for (a, _), (b, _) in zip(kept, frames)):
+            return None
+        return [rho for _, rho in kept]
+
+
 def _areas_centroids(points: np.ndarray, triangles: np.ndarray):
     p = points[triangles]
     e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
@@ -76,9 +123,10 @@ def _cell_density(particle: bool, triangles: np.ndarray, field: np.ndarray) -> n
     return np.asarray(field, float)
 
 
-def _from_result(res, mesh, R: float) -> _RunData:
+def _from_result(res, mesh, R: float, kept: KeptDensity | None = None) -> _RunData:
     """What the measures need of a run (a :class:`~pedmesh.run.results.RunResult`, in
-    memory or read from its folder frame by frame)."""
+    memory or read from its folder frame by frame; its density frames' ``rho`` from
+    ``kept`` where it holds them, see :class:`KeptDensity`)."""
     from ..io.vtk import read_vtp, read_vtu
 
     where = res.path if res.path is not None else "the run"
@@ -88,11 +136,15 @@ def _from_result(res, mesh, R: float) -> _RunData:
     if not frames:
         raise PedmeshError(f"{where}: no density frames" if res.path is None else
                            f"{res.file(F.DENSITY_PVD)} lists no frames")
+    rhos = kept.matching(frames) if kept is not None and res.path is not None else None
     ts, dens = [], []
     points = triangles = None
     particle = False
     for k, (t, f) in enumerate(frames):
-        if f is None:  # (in memory: the fields as the model gave them, on the run's mesh)
+        if rhos is not None:  # (the numbers of the frame's file, kept as it was written)
+            pd, cd = {}, {"rho": rhos[k]}
+            pts, tri = np.asarray(kept.mesh.points), np.asarray(kept.mesh.triangles)
+        elif f is None:  # (in memory: the fields as the model gave them, on the run's mesh)
             _, pd, cd = res.density[k]
             pts, tri = np.asarray(mesh.points), np.asarray(mesh.triangles)
         else:
@@ -299,7 +351,8 @@ def write_safety_vtu(path: str | Path, *, points: np.ndarray, triangles: np.ndar
 
 
 def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
-                    n_initial: float | None = None, write_fields: bool = False) -> dict:
+                    n_initial: float | None = None, write_fields: bool = False,
+                    kept: KeptDensity | None = None) -> dict:
     """The crowd-safety measures of the run in ``run_dir`` (see :data:`SAFETY_KEYS` and
     docs/safety.md), as recorded in summary.json under ``"safety"``.
 
@@ -309,8 +362,10 @@ def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
     pedestrians at the start (default: summary.json's, unless the run was given its own
     start positions), to tell the start areas' people apart (their ids follow the start
     areas' order; without it their clear times are None). ``write_fields``: also write
-    the per-cell maps to ``safety.vtu`` in the folder. Raises
-    :class:`~pedmesh.errors.PedmeshError` if the folder has no density frames.
+    the per-cell maps to ``safety.vtu`` in the folder; ``kept``: the frames' densities as
+    the run wrote them (:class:`KeptDensity`, the run driver's: the same numbers without
+    reading the frames' files). Raises :class:`~pedmesh.errors.PedmeshError` if the folder
+    has no density frames.
     """
     d = Path(run_dir)
     summary = good_summary(d) or {}
@@ -320,7 +375,7 @@ def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
             (summary.get("settings") or {}).get("model_options") or {}):
         n_initial = summary.get("n_initial")  # (not for a run given its own positions)
     R = float((summary.get("parameters") or {}).get("R") or D["R"])
-    data = _from_result(RunResult(d, summary), mesh, R)
+    data = _from_result(RunResult(d, summary), mesh, R, kept)
     record, fields = _compute(data, room, n_initial, mesh)
     if write_fields:  # (a building's on its surface in 3-D, over its density frames)
         on = mesh if mesh is not None and is_building(room) else data

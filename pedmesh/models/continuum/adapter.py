@@ -103,6 +103,15 @@ def _area_densities(start_areas, walkable, points, mesh) -> list[np.ndarray]:
     return out
 
 
+def _copy_state(Q: np.ndarray) -> np.ndarray:
+    """A copy of the cell states ``Q`` (on the threads)."""
+    if Q.ndim == 2 and Q.flags.c_contiguous:
+        out = np.empty_like(Q)
+        copy_cells(Q, out)
+        return out
+    return Q.copy()
+
+
 def _is_surface(mesh) -> bool:
     from ...mesh.surface import SurfaceMesh
 
@@ -239,19 +248,21 @@ class MacroRun:
         shortened). ``math.inf`` (the default): the plain CFL step, bit for bit as before.
         A ``t_limit`` that is NaN or not after :attr:`t` is a ValueError."""
         Q = self.state.Q
-        if Q.ndim == 2 and Q.flags.c_contiguous:
-            prev = np.empty_like(Q)
-            copy_cells(Q, prev)  # (on the threads)
-        else:
-            prev = Q.copy()
-        self._prev = (self.state.t, prev)
         t0 = self.state.t
         if self._delayed and self.solver.mass(self.state.Q) <= 1e-12 * self._n0:
             # nobody walks yet (all within their premovement): only the clock moves, by at
-            # most WAIT_STEP s (a step's release is applied at its end)
+            # most WAIT_STEP s (a step's release is applied at its end, to this very array:
+            # the state before it is a copy)
+            self._prev = (t0, _copy_state(Q))
             self.state.t = min(t_limit, t0 + WAIT_STEP)
         else:
+            # the step puts a new array in state.Q and only reads this one (FVSolver.step;
+            # a split source returns a new array too): the state before it needs no copy
+            self._prev = (t0, Q)
             self.controller.advance(None if t_limit == math.inf else t_limit)
+            if self.state.Q is Q:  # (a solver that stepped in place: the frames would be off)
+                raise RuntimeError("the continuum step changed its state in place; the "
+                                   "frames between steps need the state before it")
         if self._delayed:  # the people whose premovement ended within the step start, at rest
             t1 = self.state.t
             add = np.zeros(len(self.state.Q))
@@ -262,6 +273,12 @@ class MacroRun:
         self.max_mass_error = max(self.max_mass_error, self.controller.mass_error)
         self._curve_t.append(self.state.t)
         self._curve_n.append(self.evacuated)
+
+    def stepping(self):
+        """A context for a run's steps (the run driver holds it around its loop): numba's
+        threads and BLAS set once for all of them (:meth:`FVController.stepping`), the
+        caller's settings back afterwards."""
+        return self.controller.stepping()
 
     def outflow_rates(self) -> np.ndarray:
         """Flow [ped/s] through each exit in the last step."""

@@ -26,8 +26,10 @@ controller.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
+import threading
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -716,7 +718,8 @@ def _one_blas_thread():
     conjugate gradients of the implicit step take dot products of 10^4 numbers, which
     OpenBLAS splits over a second thread that then spins against numba's threads (measured:
     every parallel kernel of the step 5-40 times slower). The caller's setting is back
-    afterwards."""
+    afterwards. (Entering and leaving it costs 0.02-0.1 ms: a run enters it once, for all
+    its steps, through :meth:`FVController.stepping`.)"""
     global _BLAS
     if _BLAS is None:
         # scipy's BLAS loaded before the libraries are listed (scipy.linalg loads the
@@ -755,6 +758,37 @@ class FVController:
         self.mass0 = solver.mass(state.Q) + float(state.outflow.sum())
         self.dt_last = 0.0
         self.retried = 0  #: steps taken again with a shorter dt (see :class:`StageTooLong`)
+        self._held: int | None = None  # (the thread within :meth:`stepping`, if any)
+
+    @contextlib.contextmanager
+    def stepping(self):
+        """A context for many :meth:`advance` calls on this thread: numba's thread count set
+        to the solver's and BLAS limited to one thread (:func:`_one_blas_thread`) once for
+        all of them instead of at every step (threadpoolctl's limit costs 0.02-0.1 ms each
+        time it is entered and left); the caller's settings are back afterwards. Nested on
+        the same thread it does nothing (the outer one restores them)."""
+        import numba
+
+        me = threading.get_ident()
+        if self._held == me:
+            yield
+            return
+        before = numba.get_num_threads()  # (numba's count is the calling thread's own)
+        if before != self.solver.threads:
+            numba.set_num_threads(self.solver.threads)
+        try:
+            with _one_blas_thread():
+                outer = self._held is None  # (else another thread's: its steps as before)
+                if outer:
+                    self._held = me
+                try:
+                    yield
+                finally:
+                    if outer:
+                        self._held = None
+        finally:
+            if before != self.solver.threads:
+                numba.set_num_threads(before)
 
     def advance(self, t_stop: float | None = None) -> float:
         """One step (no further than ``t_stop`` [s]); returns the step length [s].
@@ -773,18 +807,15 @@ class FVController:
         that is at most 0.9 of the time left, the gap it leaves is over a tenth of it. The
         state is only replaced by a completed step.
 
-        Raises ValueError if ``t_stop`` is NaN or not after the current time."""
-        import numba
+        Raises ValueError if ``t_stop`` is NaN or not after the current time.
 
-        before = numba.get_num_threads()
-        if before != self.solver.threads:
-            numba.set_num_threads(self.solver.threads)
-        try:
-            with _one_blas_thread():
-                return self._advance(t_stop)
-        finally:
-            if before != self.solver.threads:
-                numba.set_num_threads(before)
+        The step runs on the solver's threads and with BLAS on one thread (see
+        :meth:`stepping`, which sets both once for many steps); the caller's settings are
+        back afterwards."""
+        if self._held == threading.get_ident():
+            return self._advance(t_stop)
+        with self.stepping():
+            return self._advance(t_stop)
 
     def _advance(self, t_stop: float | None) -> float:
         s = self.solver
