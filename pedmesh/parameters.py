@@ -344,6 +344,15 @@ SFM_TERMS: tuple[Parameter, ...] = declare(
               "a walker's speed follows the space in front (Seyfried et al., J. Stat. Mech. "
               "2005; the headway of Tordeux, Chraibi & Seyfried's collision-free speed "
               "model, 2016)", low=0.0, low_closed=True, range=(0.0, 16.0)),
+    _switch("exit_ghosts", 0.0, "1: who leaves through an exit still counts in the kernel "
+            "density of those behind, walking on beyond it (the law's speed at the density "
+            "they read of the others beyond, never slower than they left, along their last "
+            "desired direction, relaxing in tau) until twice the density cut-off "
+            "from where they left: an exit is a line in a world that goes on; 0: gone at the "
+            "line, and the front of a queue reads empty space ahead (the paper's model)",
+            "pedmesh (issue 44): Example 2's 10 m exit as a door in a thin wall with room "
+            "beyond passes 2.4 /(m s), removed at the line 2.8; published wide openings "
+            "2.0-2.4 (docs/validation/exit_ghosts.md)"),
     Parameter("wall_repulsion", 1.0, "-", "the walls' social repulsion A exp((r - d)/B) "
               "as a share of the pedestrians' (1: Helbing's, the paper's; 0: a wall pushes "
               "only on contact, and the route keeps people off walls: route_clearance)",

@@ -12,7 +12,8 @@ model everything).
 * ``weidmann``: the paper's social force model with the desired speed of Weidmann's
   fundamental diagram (free speed 1.34 m/s, jam density 5.4 /m^2). Literature values, not
   fitted to experiments. Its routes converge as ``validated``'s do (``route_kernel`` 2 m,
-  ``route_resolution`` 0.1 m: a route mesh of its own).
+  ``route_resolution`` 0.1 m: a route mesh of its own), and who leaves through an exit
+  still counts in the density of those behind while walking on (``exit_ghosts``).
 * ``validated`` (the default): the social force model's desired speed a table
   (``speed_law=table``) in its kernel density without one's own share (``density_self=0``,
   free speed 1.34 m/s), fitted by ``python -m pedmesh.fitting.fit_validated`` to the Juelich
@@ -27,12 +28,15 @@ model everything).
   ``route_resolution``: the social force model walks on a route mesh of its own) and its
   door physics reads the crowd ahead (``density_cone``) with a wall's social force scaled
   (``wall_repulsion``), and the table and dense-crowd terms were fitted anew with the
-  doors in a thin wall among the targets (``fit_validated --law converged``). The
+  doors in a thin wall among the targets (``fit_validated --law converged``); its exits
+  read as doors with the world beyond them (``exit_ghosts``: who leaves still counts in
+  the density of those behind while walking on; ``fit_validated --law exits``). The
   continuum models take the fitted SFM's own fundamental diagram, measured by
   ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``), as
   their table (:attr:`Preset.continuum`); ``eos`` takes the equation of state measured with
   these parameters (``pedmesh/data/eos_validated.json``) and reads its law near exits at
-  the density the social force model's kernel sees there (``exit_kernel`` = R).
+  the density less the kernel's mass beyond the exit (``exit_kernel`` = R), where the
+  social force model's people read the crowd thinning ahead of them.
 
 ``pedmesh presets`` lists them with values, units and sources.
 """
@@ -134,6 +138,8 @@ def _validated() -> "Preset | None":
             src = WEIDMANN + "; free walking speed 1.34 m/s"
         elif k == "density_self":
             src = "pedmesh: U_e without one's own kernel share, so a lone walker walks at U_f"
+        elif k == "exit_ghosts":
+            src = P.get(k).source + "; fixed in the fit (fit_validated --law exits)"
         elif k in ("route_kernel", "route_resolution", "route_clearance", "density_cone",
                    "wall_repulsion"):
             src = (P.get(k).source + "; fixed in the fit (issue 44: routes that converge, "
@@ -160,12 +166,13 @@ def _validated() -> "Preset | None":
         values["rho_shift"] = Value(round(1.0 / (math.pi * R * R), 6), _unit("rho_shift"),
                                     "1/(pi R^2): the continuum models' law at rho - 1/(pi R^2),"
                                     " the validated SFM's fundamental diagram")
-    # eos: near an exit its law is read at the density the social force model's people see
-    # there (their kernel, width R, finds nobody beyond the exit)
+    # eos: near an exit its law is read at a density less the kernel's mass beyond the exit,
+    # where the social force model's people read a crowd thinning ahead of them
     continuum["exit_kernel"] = Value(
         float(fit["parameters"].get("R", _PAPER_VALUES["R"].value)), _unit("exit_kernel"),
         "the validated SFM's kernel width R: eos reads its law near exits at the density "
-        "that kernel sees (docs/validation/dense_crowds.md)")
+        "less that kernel's mass beyond the exit, where the SFM's people read the crowd "
+        "thinning ahead (docs/validation/dense_crowds.md, exit_ghosts.md)")
     cone = float(fit["parameters"].get("density_cone", 0.0) or 0.0)
     if cone > 0:  # eos: the SFM's people at an exit look through it
         continuum["exit_cone"] = Value(
@@ -189,6 +196,10 @@ def _validated() -> "Preset | None":
 _ROUTES = {k: Value(v, _unit(k), P.get(k).source + "; issue 44: routes that converge")
            for k, v in (("route_kernel", 2.0), ("route_resolution", 0.1))}
 
+#: people who leave still count in the density of those behind them while they walk on
+#: beyond the exit (issue 44), in the presets that are not the paper's
+_EXITS = {"exit_ghosts": Value(1, _unit("exit_ghosts"), P.get("exit_ghosts").source)}
+
 PRESETS: dict[str, Preset] = {
     "paper": Preset(
         "paper", "the paper's Table 1, exactly (the model defaults; the paper's examples "
@@ -201,7 +212,7 @@ PRESETS: dict[str, Preset] = {
                             WEIDMANN + ": U_e = U_f (1 - exp(-gamma_w (1/rho - 1/rho_jam)))"),
          "U_f": Value(1.34, _unit("U_f"), WEIDMANN),
          **{k: Value(P.get(k).default, _unit(k), WEIDMANN) for k in ("rho_jam", "gamma_w")},
-         **_ROUTES}),
+         **_ROUTES, **_EXITS}),
 }
 
 if (_v := _validated()) is not None:

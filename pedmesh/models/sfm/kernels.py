@@ -949,13 +949,98 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
         out[p] = acc
 
 
+# ------------------------------------------------------------------ people beyond the exits
+#: columns of the ghost table (:func:`ghost_density`, :func:`walk_ghosts`): position [m],
+#: velocity [m/s], walking direction, desired speed [m/s], distance walked [m], the speed
+#: [m/s] at which they left (they never want to walk slower beyond the exit)
+GHOST_COLUMNS = 9
+
+
+@nb.njit(cache=True, nogil=True)
+def ghost_density(g, ng, x, e, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R, rc_d,
+                  cone, rho):
+    """Add to ``rho`` the Gaussian kernel terms (with the density cone of the directions
+    ``e``) of the ``ng`` people beyond the exits in ``g`` (:data:`GHOST_COLUMNS`), found
+    through the cell list; one thread, ghost by ghost, so the sums' order is fixed."""
+    w0 = 1.0 / (math.pi * R * R)
+    invR2 = 1.0 / (R * R)
+    rc2 = rc_d * rc_d
+    reach = int(rc_d * cinv) + 1
+    for k in range(ng):
+        px, py = g[k, 0], g[k, 1]
+        ci = int(math.floor((px - cx0) * cinv))
+        cj = int(math.floor((py - cy0) * cinv))
+        for ii in range(max(ci - reach, 0), min(ci + reach, cnx - 1) + 1):
+            for jj in range(max(cj - reach, 0), min(cj + reach, cny - 1) + 1):
+                c = ii * cny + jj
+                for a in range(cell_start[c], cell_start[c + 1]):
+                    i = cell_order[a]
+                    dx = x[i, 0] - px
+                    dy = x[i, 1] - py
+                    d2 = dx * dx + dy * dy
+                    if d2 < rc2:
+                        wi, _ = cone_weights(dx, dy, d2, cone, e[i, 0], e[i, 1], 0.0, 0.0)
+                        rho[i] += w0 * math.exp(-d2 * invR2) * wi
+
+
+@nb.njit(cache=True, nogil=True)
+def walk_ghosts(g, ng, dt, tau, reach, law, space, R, rc_d, rho):
+    """One step ``dt`` [s] of the people beyond the exits (rows of ``g``,
+    :data:`GHOST_COLUMNS`), walking on as those of a crowd in open space do: each reads the
+    kernel density (its own share and, through the density cone ``space[6:8]``, the others
+    beyond the exits ahead of it), wants the speed of the law ``law`` at it (read as a
+    crowding person's where ``space[3]`` stretches it: beyond an exit there is room) along
+    its direction, its velocity relaxing to that in ``tau`` [s] (explicit Euler: they only
+    count in densities). Who walked ``reach`` [m] is dropped, the others kept in order;
+    returns their number. ``rho``: work space of at least ``ng``."""
+    w0 = 1.0 / (math.pi * R * R)
+    invR2 = 1.0 / (R * R)
+    rc2 = rc_d * rc_d
+    cone = space[6:8]
+    for k in range(ng):
+        rho[k] = w0
+    for k in range(ng):
+        for j in range(k + 1, ng):
+            dx = g[k, 0] - g[j, 0]
+            dy = g[k, 1] - g[j, 1]
+            d2 = dx * dx + dy * dy
+            if d2 < rc2:
+                wk, wj = cone_weights(dx, dy, d2, cone, g[k, 4], g[k, 5], g[j, 4], g[j, 5])
+                w = w0 * math.exp(-d2 * invR2)
+                rho[k] += w * wk
+                rho[j] += w * wj
+    crowd = space[3] > 1.0
+    w = 0
+    a = dt / tau
+    for k in range(ng):
+        u = max(_desired_speed(g[k, 6], law, rho[k], -1.0, crowd, 1.0, space[4], space[3]),
+                g[k, 8])
+        vx = g[k, 2] + a * (u * g[k, 4] - g[k, 2])
+        vy = g[k, 3] + a * (u * g[k, 5] - g[k, 3])
+        walked = g[k, 7] + dt * math.sqrt(vx * vx + vy * vy)
+        if walked >= reach:
+            continue
+        g[w, 0] = g[k, 0] + dt * vx
+        g[w, 1] = g[k, 1] + dt * vy
+        g[w, 2] = vx
+        g[w, 3] = vy
+        g[w, 4] = g[k, 4]
+        g[w, 5] = g[k, 5]
+        g[w, 6] = g[k, 6]
+        g[w, 7] = walked
+        g[w, 8] = g[k, 8]
+        w += 1
+    return w
+
+
 @nb.njit(parallel=True, cache=True, nogil=True)
 def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
              cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
              piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
              rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
              const_u, use_const, xs, vs, F, rho, rho_out, e, pi, pj, skin, density_stages,
-             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge, nblocks=1, cells_built=False):
+             toff, tbuf, space, rs, wmap, wgeo, cf, ue, hinge, ghosts, n_ghosts, nblocks=1,
+             cells_built=False):
     """One Shu-Osher SSP-RK3 step of (x, v) in place; ``tri`` follows the stage positions.
     ``rho_out`` receives the kernel densities at the start of the step; they set U_e in all
     three stages if ``density_stages`` is 1, else the density is re-evaluated at each stage.
@@ -970,7 +1055,9 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     thread, the caller's ``numba.get_num_threads()``); the result is the same for any.
     ``hinge``: the pairs across a building's stair edges (:func:`accel`). ``cells_built``:
     the cell list already holds the positions ``x`` (a building's step lists its pairs
-    across stair edges from it first).
+    across stair edges from it first). ``ghosts``: the first ``n_ghosts`` rows are people
+    beyond the exits (:func:`ghost_density`), counted in the densities at the step's start
+    (with ``density_stages`` 1 only).
     """
     every = density_stages == 3
     # with the density held over the step it is computed while listing the pairs, and the
@@ -986,6 +1073,9 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         return -1
     if hinge[3] > 0 and not every:  # the densities across a building's stair edges
         hinge_density(x, hinge[3], hinge[0], hinge[1], hinge[2], rc_d, R, rho, e, cone)
+    if n_ghosts > 0:  # those just out through an exit (exit_ghosts; density_stages 1)
+        ghost_density(ghosts, n_ghosts, x, e, cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
+                      R, rc_d, cone, rho)
     # stage 1: u1 = u + dt L(u)
     accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
           next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg, rc_f, rc_d, rc_w, rad, A, B, k, kappa,

@@ -41,6 +41,7 @@ class SocialForceParams:
     t_space: float = P.field("t_space")
     vision: float = P.field("vision")
     density_cone: float = P.field("density_cone")
+    exit_ghosts: float = P.field("exit_ghosts")
     wall_repulsion: float = P.field("wall_repulsion")
     crowd_stretch: float = P.field("crowd_stretch")
     crowd_knee: float = P.field("crowd_knee")

@@ -33,7 +33,7 @@ from typing import Callable
 
 import numpy as np
 
-from ...errors import SimulationError
+from ...errors import ParameterError, SimulationError
 from ...mesh.triangle_mesh import TriMesh
 from .params import SFMNumerics, SocialForceParams
 from .walls import WallSet
@@ -151,6 +151,7 @@ class Simulation:
         self.own_mesh = bool(own_mesh)
         self.walls = WallSet.from_mesh(mesh, self.rc_w, merge=self.own_mesh)
         self._set_space_requirement(N)
+        self._set_ghosts()
         self._law = self.params.kernel_law()  # the desired-speed law (pedmesh.speed)
         self._set_routes(reroute, desired_velocity)
         if self.params.density_cone > 0 and self.n:  # the cone looks along the route
@@ -288,6 +289,60 @@ class Simulation:
         if p.shrink > 0 and p.shrink >= float(self.rad.min()):
             raise SimulationError(f"parameter 'shrink' ({p.shrink:g} m) must be less than every "
                                   f"body radius (smallest {float(self.rad.min()):g} m)")
+
+    def _set_ghosts(self) -> None:
+        """The table of people beyond the exits (``exit_ghosts``; rows of
+        :data:`~pedmesh.models.sfm.kernels.GHOST_COLUMNS`, grown as needed): each walks
+        twice the density cut-off before it is dropped, out of reach of all inside."""
+        from .kernels import GHOST_COLUMNS
+
+        self.exit_ghosts = bool(self.params.exit_ghosts)
+        if self.exit_ghosts and int(self.numerics.density_stages) != 1:
+            raise ParameterError("exit_ghosts needs density_stages 1 (the densities read at "
+                                 "the start of each step)")
+        self._ghosts = np.zeros((64 if self.exit_ghosts else 1, GHOST_COLUMNS))
+        #: people beyond the exits still counted in the densities (``exit_ghosts``)
+        self.n_ghosts = 0
+        self._ghost_reach = 2.0 * self.rc_d
+        self._ghost_rho = np.empty(len(self._ghosts))
+
+    def _add_ghosts(self, gone: np.ndarray, n: int) -> None:
+        """Walk the people beyond the exits one step on, then add those who left in it
+        (rows ``gone`` of the first ``n``), heading on along their desired direction (or
+        their velocity's where they have none) at their desired speed."""
+        from . import kernels as K
+
+        if self.n_ghosts:
+            if len(self._ghost_rho) < self.n_ghosts:
+                self._ghost_rho = np.empty(len(self._ghosts))
+            self.n_ghosts = K.walk_ghosts(self._ghosts, self.n_ghosts, self.numerics.dt,
+                                          self.params.tau, self._ghost_reach, self._law,
+                                          self._space, self.params.R, self.rc_d,
+                                          self._ghost_rho)
+        if gone is None:
+            return
+        k = int(gone.sum())
+        need = self.n_ghosts + k
+        if need > len(self._ghosts):
+            grown = np.zeros((max(need, 2 * len(self._ghosts)), self._ghosts.shape[1]))
+            grown[: self.n_ghosts] = self._ghosts[: self.n_ghosts]
+            self._ghosts = grown
+        v = self.v[:n][gone]
+        e = self._e[:n][gone].copy()
+        norm = np.hypot(e[:, 0], e[:, 1])
+        speed = np.hypot(v[:, 0], v[:, 1])
+        none = norm < 1e-12
+        e[none] = v[none] / np.maximum(speed[none], 1e-300)[:, None]
+        e[none & (speed <= 0)] = 0.0
+        e[~none] /= norm[~none][:, None]
+        rows = self._ghosts[self.n_ghosts: need]
+        rows[:, 0:2] = self.x[:n][gone]
+        rows[:, 2:4] = v
+        rows[:, 4:6] = e
+        rows[:, 6] = self.u0[:n][gone]
+        rows[:, 7] = 0.0
+        rows[:, 8] = np.minimum(speed, rows[:, 6])
+        self.n_ghosts = need
 
     def _set_width_map(self) -> None:
         """The free width [m] of queueing or crowding over the walkable area (``width_map``
@@ -612,7 +667,8 @@ class Simulation:
             self._const_u, self._use_const, self._xs, self._vs, self._F, self._rho_w, self.rho,
             self._e, self._pi, self._pj, PAIR_SKIN, int(self.numerics.density_stages),
             self.toff, self._tbuf, self._space, self._rs, self._wmap, self._wgeo, self._cf,
-            self._ue, self._hinge_pairs, numba.get_num_threads(), cells_built,
+            self._ue, self._hinge_pairs, self._ghosts, self.n_ghosts, numba.get_num_threads(),
+            cells_built,
         )
 
     def step(self) -> int:
@@ -645,6 +701,8 @@ class Simulation:
             self._admit()
         if self.n == 0:
             if self.n_waiting:  # nobody inside yet, people still to arrive: the clock moves
+                if self.n_ghosts:  # (and those beyond the exits walk on)
+                    self._add_ghosts(None, 0)
                 self.steps += 1
                 self.t = self.steps * nm.dt
             return 0
@@ -683,6 +741,8 @@ class Simulation:
             self._cross_hinges(n)
         gone = self._exit_of[:n] >= 0
         n_gone = int(gone.sum())
+        if self.exit_ghosts and (n_gone or self.n_ghosts):
+            self._add_ghosts(gone if n_gone else None, n)
         if n_gone:
             ids = self.ids[:n][gone]
             self.exit_time[ids] = self.t + self._exit_frac[:n][gone] * dt
