@@ -28,6 +28,8 @@ file a benchmark wrote; no measured figure is typed into a page by hand. The sou
 * ``docs/data/building_steps.json``: ``python benchmarks/building_steps.py --reference
   --json FILE`` (a social force model step of ten people on the top floor of 10- and
   50-floor towers against the same ten in a one-floor room; issue 45).
+* ``docs/data/exit_ghosts.json``: ``python benchmarks/exit_ghosts.py --json FILE`` (Example
+  2's exit as a line, as a door onto a porch and with people beyond it; issue 44).
 
 To update a figure, re-run its benchmark with the same options into the same file and
 commit the file; the JSON records the command, date, machine and load average it was
@@ -357,6 +359,43 @@ def building_steps(path: Path = DATA / "building_steps.json") -> str:
     return "\n".join(lines)
 
 
+def exit_ghosts(path: Path = DATA / "exit_ghosts.json") -> str:
+    """Example 2's exit as a line, as a door onto a porch and with people beyond it
+    (``benchmarks/exit_ghosts.py``, issue 44)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    what = {"line": "the exit line, people removed on it",
+            "porch": "a door in a 0.2 m wall onto a 10 x 30 m porch",
+            "ghosts": "the exit line, people beyond it in the density (`exit_ghosts=1`)"}
+
+    def stat(case, key):
+        v = [r[key] for r in res["rows"] if r["case"] == case]
+        return statistics.fmean(v), min(v), max(v)
+
+    rows = []
+    for case in ("line", "porch", "ghosts"):
+        f, t50, t90 = (stat(case, k) for k in ("flow_per_m_s", "T50_s", "T90_s"))
+        rows.append([f"SFM, {what[case]}", f"{f[0]:.2f} ({f[1]:.2f}-{f[2]:.2f})",
+                     f"{t50[0]:.1f} ({t50[1]:.1f}-{t50[2]:.1f})",
+                     f"{t90[0]:.1f} ({t90[1]:.1f}-{t90[2]:.1f})"])
+    e = next(r for r in res["rows"] if r["case"] == "eos")
+    rows.append(["eos, the exit line", f"{e['flow_per_m_s']:.2f}", f"{e['T50_s']:.1f}",
+                 f"{e['T90_s']:.1f}"])
+    g50, g90 = stat("ghosts", "T50_s")[0], stat("ghosts", "T90_s")[0]
+    l50, l90 = stat("line", "T50_s")[0], stat("line", "T90_s")[0]
+    lines = [f"Example 2 (2,400 people, a 10 m exit) under `validated`; the social force model "
+             f"the mean of seeds {', '.join(map(str, res['seeds']))} (their range in "
+             "brackets). Flow: through x = 100 m between the 10th and the 90th percentile of "
+             "the crossings; T50/T90: when half and nine tenths had crossed x = 100 m.", ""]
+    lines += _table(["", "flow [1/(m s)]", "T50 [s]", "T90 [s]"], rows, "l")
+    lines += ["", f"eos against the social force model (T50 / T90): "
+              f"{100 * (e['T50_s'] / g50 - 1):+.1f} / {100 * (e['T90_s'] / g90 - 1):+.1f} % "
+              f"with people beyond the exit, {100 * (e['T50_s'] / l50 - 1):+.1f} / "
+              f"{100 * (e['T90_s'] / l90 - 1):+.1f} % against the exit line alone.", "",
+              _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
@@ -366,7 +405,8 @@ SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_convergence.md": convergence,
             "figures_converged_ab.md": converged_ab,
             "figures_startup.md": startup,
-            "figures_building_steps.md": building_steps}
+            "figures_building_steps.md": building_steps,
+            "figures_exit_ghosts.md": exit_ghosts}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:
