@@ -309,7 +309,8 @@ class Simulation:
     def _add_ghosts(self, gone: np.ndarray, n: int) -> None:
         """Walk the people beyond the exits one step on, then add those who left in it
         (rows ``gone`` of the first ``n``), heading on along their desired direction (or
-        their velocity's where they have none) at their desired speed."""
+        their velocity's where they have none), never to want less than the speed they
+        left with (at most their free speed)."""
         from . import kernels as K
 
         if self.n_ghosts:
