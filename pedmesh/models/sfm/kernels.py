@@ -989,9 +989,9 @@ def walk_ghosts(g, ng, dt, tau, reach, law, space, R, rc_d, rho):
     :data:`GHOST_COLUMNS`), walking on as those of a crowd in open space do: each reads the
     kernel density (its own share and, through the density cone ``space[6:8]``, the others
     beyond the exits ahead of it), wants the speed of the law ``law`` at it (read as a
-    crowding person's where ``space[3]`` stretches it: beyond an exit there is room) along
-    its direction, its velocity relaxing to that in ``tau`` [s] (explicit Euler: they only
-    count in densities). Who walked ``reach`` [m] is dropped, the others kept in order;
+    crowding person's where ``space[3]`` stretches it: beyond an exit there is room), but
+    never less than the speed it left with, along its direction, its velocity relaxing to
+    that in ``tau`` [s] (explicit Euler: they only count in densities). Who walked ``reach`` [m] is dropped, the others kept in order;
     returns their number. ``rho``: work space of at least ``ng``."""
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
