@@ -991,8 +991,9 @@ def walk_ghosts(g, ng, dt, tau, reach, law, space, R, rc_d, rho):
     beyond the exits ahead of it), wants the speed of the law ``law`` at it (read as a
     crowding person's where ``space[3]`` stretches it: beyond an exit there is room), but
     never less than the speed it left with, along its direction, its velocity relaxing to
-    that in ``tau`` [s] (explicit Euler: they only count in densities). Who walked ``reach`` [m] is dropped, the others kept in order;
-    returns their number. ``rho``: work space of at least ``ng``."""
+    that in ``tau`` [s] (explicit Euler: they only count in densities). Who walked
+    ``reach`` [m] is dropped, the others kept in order; returns their number. ``rho``: work
+    space of at least ``ng``."""
     w0 = 1.0 / (math.pi * R * R)
     invR2 = 1.0 / (R * R)
     rc2 = rc_d * rc_d
