@@ -135,8 +135,9 @@ def test_merged_walls_give_the_same_forces():
 
 
 def test_rows_follow_the_route_mesh():
-    """On its own route mesh the crowd's rows are put in the order of their triangles at
-    every route solve; every row keeps its pedestrian (ids, positions in their triangles)."""
+    """On its own route mesh the crowd's rows are put in the order of the neighbour grid's
+    cells at every route solve; every row keeps its pedestrian (ids, positions in their
+    triangles)."""
     room = pedmesh.load_room("geometries/experiments/uo-100-180-180.json")
     run = pedmesh.build(room, "sfm", preset="validated",
                         params={"route_kernel": 2.0, "route_resolution": 0.1})
@@ -147,7 +148,11 @@ def test_rows_follow_the_route_mesh():
     before = {int(i): sim.x[k].copy() for k, i in enumerate(sim.ids[:sim.n])}
     sim._sort_rows()
     n = sim.n
-    assert np.all(np.diff(sim.tri[:n]) >= 0)
+    x = sim.x[:n]
+    ci = np.clip(((x[:, 0] - sim._cx0) * sim._cinv).astype(int), 0, sim._cnx - 1)
+    cj = np.clip(((x[:, 1] - sim._cy0) * sim._cinv).astype(int), 0, sim._cny - 1)
+    assert np.all(np.diff(ci * sim._cny + cj) >= 0)
+    assert not np.all(np.diff(sim.tri[:n]) >= 0)  # (not the triangles' order)
     assert sorted(before) == sorted(sim.ids[:n].tolist())
     for k, i in enumerate(sim.ids[:n]):
         assert np.array_equal(sim.x[k], before[int(i)])
