@@ -164,7 +164,8 @@ class EikonalSolver:
             return np.full(mesh.n_triangles, float(c)), float(c) * self.ray_len
         if c.shape == (mesh.n_points,):
             _check_cost(c)
-            f_tri = c[mesh.triangles].mean(axis=1)
+            f_tri = np.empty(mesh.n_triangles)
+            _fmm.triangle_means(np.ascontiguousarray(c), mesh.triangles, f_tri)
         elif c.shape == (mesh.n_triangles,):
             _check_cost(c)
             f_tri = np.ascontiguousarray(c)

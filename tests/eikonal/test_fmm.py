@@ -216,3 +216,15 @@ def test_compiled_kernel_matches_plain_python(load_shipped, corner_radius):
     ref = reference_fmm(mesh, f_tri, fixed, rays)
     np.testing.assert_allclose(phi, ref, rtol=1e-13, atol=1e-12)
     assert s.n_obtuse > 0
+
+
+def test_vertex_costs_average_onto_triangles_as_numpy_does(load_shipped):
+    """Per-vertex costs become per-triangle ones as the mean of the three corners, in
+    numpy's summation order: the same bits as ``c[triangles].mean(axis=1)`` (the paper's
+    runs stay bit for bit)."""
+    mesh = triangulate(load_shipped("example3.json"), max_area=1.0)
+    s = EikonalSolver(mesh)
+    rng = np.random.default_rng(5)
+    c = 0.3 + rng.random(mesh.n_points) * rng.choice([1e-3, 1.0, 1e3], mesh.n_points)
+    f_tri, _ = s._costs(c)
+    assert np.array_equal(f_tri, c[mesh.triangles].mean(axis=1))

@@ -622,8 +622,10 @@ class Simulation:
             if self._route_wall is not None:
                 cost = cost * self._route_wall
             self.phi = self._solver.solve(cost)
-            field_ = DirectionField(self.mesh, self.phi)
-            if len(self._targets) == 1:
+            one = len(self._targets) == 1  # (then the table is refilled in place)
+            field_ = DirectionField(self.mesh, self.phi, self._dpack if one and
+                                    self.steps > 0 else None)
+            if one:
                 self._dpack = field_.packed
             else:  # a steering table per target group, stacked (rows t + g m)
                 tables = [field_.packed] + [
