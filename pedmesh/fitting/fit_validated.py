@@ -8,6 +8,9 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
     calibration rooms measure before their exits, which have room beyond, so the change
     moved the objective by what another realisation does; the point was kept.
 
+``--law refit`` (issue 44, under way): ``--law exits``' model fitted anew, Nelder-Mead
+    from its point (which missed four targets by 1-11 %).
+
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
     fitted with the doors in a thin wall among the targets (``LAWS["converged"]``).
@@ -268,6 +271,14 @@ LAWS["exits"] = {
              "docs/validation/exit_ghosts.md): a change of the model at exits, which the "
              "calibration rooms' measurement lines lie before (their exits have room beyond), "
              "so the point was kept and not fitted again."),
+}
+# issue 44, refit: the model with people beyond the exits fitted anew (Nelder-Mead from the
+# exits point; the calibration rooms' exits now have the people beyond them)
+LAWS["refit"] = {
+    **LAWS["exits"],
+    "csv": "fit_evaluations_refit.csv",
+    "note": ("Nelder-Mead from the point of `--law exits` (F = 5.87 there, four targets "
+             "missed by 1-11 %), the model with people beyond the exits (`exit_ghosts=1`)."),
 }
 #: [ped/m^2] where the table law reaches 0
 TABLE_ZERO = 5.6

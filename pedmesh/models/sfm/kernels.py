@@ -924,6 +924,15 @@ def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, ed
 
 
 # ------------------------------------------------------------------ densities on the mesh
+@nb.njit(cache=True, inline="always")
+def _cell_span(p, origin, inv_cell, ncell, reach):
+    """The first and last cell index (clamped to the grid) within ``reach`` cells of the
+    cell holding the coordinate ``p`` [m] (floored: a point left of the grid is in no cell,
+    and its span starts at the grid's first)."""
+    c = int(math.floor((p - origin) * inv_cell))
+    return max(c - reach, 0), min(c + reach, ncell - 1)
+
+
 @nb.njit(parallel=True, cache=True, nogil=True)
 def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R, rc_d, out):
     """Gaussian kernel density (eq3, eq4) of the pedestrians at points ``q`` [ped/m^2]."""
@@ -933,11 +942,11 @@ def density_at(q, nq, x, n, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, R,
     reach = int(rc_d * cinv) + 1
     for p in nb.prange(nq):
         px, py = q[p, 0], q[p, 1]
-        ci = int((px - cx0) * cinv)
-        cj = int((py - cy0) * cinv)
+        i0, i1 = _cell_span(px, cx0, cinv, cnx, reach)
+        j0, j1 = _cell_span(py, cy0, cinv, cny, reach)
         acc = 0.0
-        for ii in range(max(ci - reach, 0), min(ci + reach, cnx - 1) + 1):
-            for jj in range(max(cj - reach, 0), min(cj + reach, cny - 1) + 1):
+        for ii in range(i0, i1 + 1):
+            for jj in range(j0, j1 + 1):
                 c = ii * cny + jj
                 for a in range(cell_start[c], cell_start[c + 1]):
                     i = cell_order[a]
@@ -968,10 +977,10 @@ def ghost_density(g, ng, x, e, cell_start, cell_order, cx0, cy0, cinv, cnx, cny,
     reach = int(rc_d * cinv) + 1
     for k in range(ng):
         px, py = g[k, 0], g[k, 1]
-        ci = int(math.floor((px - cx0) * cinv))
-        cj = int(math.floor((py - cy0) * cinv))
-        for ii in range(max(ci - reach, 0), min(ci + reach, cnx - 1) + 1):
-            for jj in range(max(cj - reach, 0), min(cj + reach, cny - 1) + 1):
+        i0, i1 = _cell_span(px, cx0, cinv, cnx, reach)
+        j0, j1 = _cell_span(py, cy0, cinv, cny, reach)
+        for ii in range(i0, i1 + 1):
+            for jj in range(j0, j1 + 1):
                 c = ii * cny + jj
                 for a in range(cell_start[c], cell_start[c + 1]):
                     i = cell_order[a]
