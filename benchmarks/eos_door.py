@@ -11,6 +11,9 @@ model's people do in front of a door (docs/validation/dense_crowds.md, "eos at t
    (without their own share), its ratio to the crowd's, their desired speed, velocity and
    the pair force along x; and beside it the kernel's mass beyond the exit that eos's
    ``exit_kernel`` takes away (:func:`pedmesh.models.continuum.exit_kernel.exit_kernel_mass`).
+   Then the same strips under eos (density, v_x and the flow along x per metre of width,
+   from frames every 0.5 s), with ``--param`` going to eos there too (e.g.
+   ``exit=transmissive``: the exit's condition).
 
     python benchmarks/eos_door.py --times --seeds 2      # ~15 min on 2 cores
     python benchmarks/eos_door.py --door                 # ~1 min
@@ -117,14 +120,47 @@ def door() -> None:
           "y in [20, 30] m")
     print("| x [m] | crowd density [/m^2] | kernel density read [/m^2] | read / crowd "
           "| desired speed [m/s] | v_x [m/s] | pair force / m along x [m/s^2] "
-          "| 1 - w at the strip's middle (eos exit_kernel) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "| 1 - w at the strip's middle (eos exit_kernel) | flow along x [1/(m s)] |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for q in range(nb):
         c = max(acc["n"][q], 1.0)
         rho = acc["n"][q] / frames / area
         print(f"| {edges[q]:.1f}-{edges[q + 1]:.1f} | {rho:.2f} | {acc['rho_k'][q] / c:.2f} | "
               f"{acc['rho_k'][q] / c / rho:.2f} | {acc['ue'][q] / c:.2f} | "
-              f"{acc['vx'][q] / c:.2f} | {acc['fx'][q] / c:+.2f} | {1 - w[q]:.2f} |")
+              f"{acc['vx'][q] / c:.2f} | {acc['fx'][q] / c:+.2f} | {1 - w[q]:.2f} | "
+              f"{rho * acc['vx'][q] / c:.2f} |")
+
+
+def door_eos(overrides: dict) -> None:
+    """The strips of :func:`door` under eos (validated, the run's default mesh)."""
+    import pedmesh
+
+    room, mesh = _room_and_mesh("example2")
+    res = pedmesh.simulate(room, "eos", preset="validated", mesh=mesh, t_end=300.0,
+                           params={"output_interval": 0.5, **overrides})
+    c, area = mesh.centroids, mesh.areas
+    edges = np.arange(96.0, 100.01, 0.5)
+    nb = len(edges) - 1
+    b = np.digitize(c[:, 0], edges) - 1
+    m = (c[:, 1] >= 20.0) & (c[:, 1] < 30.0) & (b >= 0) & (b < nb)
+    mass, mom, cover = np.zeros(nb), np.zeros(nb), np.zeros(nb)
+    frames = 0
+    for t in np.arange(70.0, 110.01, 0.5):
+        _, rho, vel = res.density_at(float(t))
+        np.add.at(mass, b[m], (rho * area)[m])
+        np.add.at(mom, b[m], (rho * area * vel[:, 0])[m])
+        np.add.at(cover, b[m], area[m])
+        frames += 1
+    extra = ", ".join(f"{k}={v}" for k, v in overrides.items())
+    print(f"\neos (validated{', ' + extra if extra else ''}), the same strips, {frames} "
+          f"frames; T50 / T90 {res.times['T50']:.1f} / {res.times['T90']:.1f} s")
+    print("| x [m] | density [/m^2] | v_x [m/s] | flow along x [1/(m s)] |")
+    print("|---|---|---|---|")
+    for q in range(nb):
+        rho_q = mass[q] / cover[q]
+        vx = mom[q] / max(mass[q], 1e-12)
+        print(f"| {edges[q]:.1f}-{edges[q + 1]:.1f} | {rho_q:.2f} | {vx:.2f} | "
+              f"{rho_q * vx:.2f} |")
 
 
 def main(argv=None) -> None:
@@ -141,6 +177,7 @@ def main(argv=None) -> None:
         ap.error("say --times and/or --door")
     if a.door:
         door()
+        door_eos(parse_overrides(a.param))
     if a.times:
         times(a.seeds, parse_overrides(a.param))
 
