@@ -4,6 +4,7 @@ its fix."""
 from __future__ import annotations
 
 import json
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -149,6 +150,9 @@ def test_ctrl_c_in_simulate_carries_the_partial_result(tmp_path, on_disk):
         "start_areas": [{"name": "crowd", "polygon": [[1, 1], [9, 1], [9, 9], [1, 9]],
                          "count": 150}]}))
     pedmesh.simulate(room, model="sfm", t_end=0.5)  # (compiled kernels loaded)
+    # Python's own Ctrl-C handler, whatever the test runner was started with (under nohup,
+    # SIGINT is ignored and interrupt_main would do nothing)
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(1.0, _thread.interrupt_main)
     timer.start()
     try:
@@ -158,6 +162,7 @@ def test_ctrl_c_in_simulate_carries_the_partial_result(tmp_path, on_disk):
                              out_dir=tmp_path / "run" if on_disk else None)
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, before)
     exc = info.value
     assert isinstance(exc, RunInterrupted) and isinstance(exc, pedmesh.PedmeshError)
     res = exc.result
