@@ -101,14 +101,16 @@ def _safety_rows(sf: Mapping) -> list[tuple[str, str]]:
             where = ""
             if is_num(cp.get("x")) and is_num(cp.get("y")):
                 where = f" at x = {number(cp['x'])} m, y = {number(cp['y'])} m"
+            if cp.get("level") is not None:  # a building's: in that level's plan
+                where = f" on level '{esc(cp['level'])}'" + where
             rows.append(('<span title="the local density times the variance of the people\'s '
                          'velocities (Helbing, Johansson &amp; Al-Abideen 2007); crowd '
                          'turbulence was seen above about 0.02 /s²">crowd pressure ρ Var(v) '
                          '(largest)</span>',
                          f"{number(cp.get('max'))} {esc(unit_text(cp.get('unit') or ''))} at t = "
                          f"{number(cp.get('t'))} s{where}"))
-        elif "levels" in sf:
-            rows.append(("crowd pressure ρ Var(v)", "not computed for buildings yet"))
+        elif "levels" in sf:  # (a continuum's building run, or an older run folder)
+            rows.append(("crowd pressure ρ Var(v)", "not recorded for this building run"))
         else:
             rows.append(("crowd pressure ρ Var(v)", "not applicable (no particle velocities)"))
     for name, e in (sf.get("exits") or {}).items():

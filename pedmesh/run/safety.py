@@ -51,7 +51,7 @@ class _RunData:
     triangles: np.ndarray  # (m, 3)
     density: np.ndarray  # (F, m) cell densities [ped/m^2]
     particle: bool  # the density is a particle model's kernel density at the vertices
-    pedestrians: Callable[[], Iterable[tuple[float, np.ndarray, np.ndarray]]] | None
+    pedestrians: Callable[..., Iterable[tuple]] | None  # (t, positions, velocities) frames
     exit_names: list[str]
     crossings: tuple[np.ndarray, np.ndarray, np.ndarray] | None  # ids, exits, times
     outflow: tuple[np.ndarray, np.ndarray]  # t [s], flows (k, exits) [ped/s]
@@ -112,9 +112,10 @@ def _areas_centroids(points: np.ndarray, triangles: np.ndarray):
     return areas, p.mean(axis=1)
 
 
-def _velocities(data: dict, n: int) -> np.ndarray:
-    v = np.asarray(data.get("velocity", np.zeros((n, 2))), float)
-    return v[:, :2] if v.ndim == 2 and len(v) == n else np.zeros((n, 2))
+def _velocities(data: dict, n: int, dims: int = 2) -> np.ndarray:
+    v = np.asarray(data.get("velocity", np.zeros((n, dims))), float)
+    return v[:, :dims] if v.ndim == 2 and len(v) == n and v.shape[1] >= dims \
+        else np.zeros((n, dims))
 
 
 def _cell_density(particle: bool, triangles: np.ndarray, field: np.ndarray) -> np.ndarray:
@@ -167,13 +168,23 @@ def _from_result(res, mesh, R: float, kept: KeptDensity | None = None) -> _RunDa
     if particle and res.pedestrian_frames:
         pframes = res.pedestrian_frames
 
-        def peds():
+        def peds(three_d: bool = False):
+            """(t, positions, velocities) of each pedestrian frame: in the plan, or with
+            ``three_d`` as written (a building's: (k, 3) positions and velocities along
+            the surface, and the piece each stands on, as a fourth item)."""
+            names = ("velocity", "piece") if three_d else ("velocity",)
             for k, (t, f) in enumerate(pframes):
                 if f is None:
                     _, pts, data = res.pedestrians[k]
                 else:
-                    pts, data = read_vtp(f, arrays=("velocity",))
-                yield t, np.asarray(pts)[:, :2], _velocities(data, len(pts))
+                    pts, data = read_vtp(f, arrays=names)
+                pts = np.asarray(pts, float)
+                if three_d:
+                    piece = data.get("piece")
+                    yield (t, pts, _velocities(data, len(pts), 3),
+                           None if piece is None else np.asarray(piece, np.int64))
+                else:
+                    yield t, pts[:, :2], _velocities(data, len(pts))
 
     ot, of, names = res.outflow
     crossings = res.crossings if particle and res.has_table(F.EXITS) else None
@@ -200,16 +211,41 @@ def _room_of(summary: dict, d: Path | None):
 def _building_view(data: _RunData, surface) -> tuple[_RunData, np.ndarray, list, np.ndarray]:
     """``data`` of a building run seen on its atlas (:mod:`pedmesh.mesh.atlas`: every
     level and stair flat, apart from each other, so that a 1 m^2 disk never reaches from one
-    floor to the one above), its crowd pressure left out (its frames are in 3-D); and the
+    floor to the one above), its pedestrian frames too (written in 3-D with the piece each
+    stands on: each carried into its piece's chart, as :func:`_atlas_frames`); and the
     piece of each cell, the pieces and their atlas offsets [m]."""
     import dataclasses
 
     from ..mesh.atlas import build_atlas
 
     atlas = build_atlas(surface)
+    peds = None
+    if data.pedestrians is not None:
+        frames = data.pedestrians
+
+        def peds():
+            return _atlas_frames(frames(three_d=True), surface.pieces, atlas.offset)
+
     view = dataclasses.replace(data, points=np.asarray(atlas.open.points)[:, :2],
-                               triangles=np.asarray(atlas.open.triangles), pedestrians=None)
+                               triangles=np.asarray(atlas.open.triangles), pedestrians=peds)
     return view, np.asarray(atlas.glued.piece), list(surface.pieces), atlas.offset
+
+
+def _atlas_frames(frames, pieces, offset: np.ndarray):
+    """The pedestrian frames of a building (t, 3-D positions, 3-D velocities, piece) on its
+    atlas: each position in its piece's chart plus the piece's offset, each velocity in the
+    chart's axes (an isometry: speeds and their spread are the surface's). A frame without
+    the pieces (written before they were) is skipped."""
+    axes = np.stack([p.axes for p in pieces])  # (p, 2, 3)
+    origin = np.stack([p.origin for p in pieces])  # (p, 3)
+    for t, pts, vel, piece in frames:
+        if piece is None or len(piece) != len(pts):
+            continue
+        a = axes[piece]
+        rel = pts - origin[piece]
+        xy = np.einsum("kj,kij->ki", rel, a) + offset[piece]
+        uv = np.einsum("kj,kij->ki", vel, a)
+        yield t, xy, uv
 
 
 def _density_record(t, local, areas, centroids, over: str) -> tuple[dict, object, np.ndarray]:
@@ -331,6 +367,12 @@ def _compute(data: _RunData, room, n_initial, mesh=None) -> tuple[dict, dict[str
         if record["peak_density"]["x"] is not None and k is not None:
             record["peak_density"]["x"] -= float(offset[piece[k]][0])
             record["peak_density"]["y"] -= float(offset[piece[k]][1])
+        if pressure is not None and pressure.get("x") is not None:  # (as the peak density)
+            kp = int(np.argmin(np.hypot(centroids[:, 0] - pressure["x"],
+                                        centroids[:, 1] - pressure["y"])))
+            pressure["level"] = names[piece[kp]]
+            pressure["x"] -= float(offset[piece[kp]][0])
+            pressure["y"] -= float(offset[piece[kp]][1])
     return record, fields
 
 

@@ -183,11 +183,42 @@ def test_safety_measures_per_level_on_a_building(tmp_path, model):
     if model == "sfm":
         assert set(s["clear_times"]["start_areas"]) == {"hall", "offices"}
         assert all(v is not None for v in s["clear_times"]["start_areas"].values())
+        # the crowd pressure too, on the level (or stair) it names, in that one's plan
+        cp = s["crowd_pressure"]
+        assert cp["max"] > 0 and cp["level"] in {"ground", "first", "stair"}
+        assert -1e-6 <= cp["x"] <= 20 + 1e-6 and -1e-6 <= cp["y"] <= 10 + 1e-6
+    else:
+        assert s["crowd_pressure"] is None  # (a continuum has no people's velocities)
     assert sum(e["people"] for e in s["exits"].values()) == pytest.approx(60, abs=1.0)
     assert (out / "safety.vtu").is_file()
     html = tmp_path / "r.html"
     assert main(["report", str(out), "-o", str(html)]) == 0
     assert "Per level" in html.read_text(encoding="utf-8")
+
+
+def test_pedestrian_frames_reach_the_atlas_where_the_people_are(tmp_path):
+    """A building's pedestrian frames (3-D positions and velocities along the surface, the
+    piece each stands on) carried into the atlas by the safety measures land on the
+    simulation's own atlas positions and velocities, on the levels and on the stair."""
+    from pedmesh.run.safety import _atlas_frames
+
+    run = pedmesh.build(_building(tmp_path), "sfm")
+    sim = run.sim
+    on_stair = 0
+    while sim.t < 12.0:
+        sim.step()
+        on_stair = max(on_stair, int(np.sum(sim.piece_of() == 2)))
+        if on_stair and sim.t > 6.0:
+            break
+    n = sim.n
+    frames = [(sim.t, sim.positions_3d(), sim.velocities_3d(), sim.piece_of())]
+    ((t, xy, uv),) = _atlas_frames(frames, sim.atlas.surface.pieces, sim.atlas.offset)
+    assert on_stair > 0 and n > 0
+    np.testing.assert_allclose(xy, sim.x[:n], atol=1e-9)
+    np.testing.assert_allclose(uv, sim.v[:n], atol=1e-9)
+    # a frame without the pieces (written before they were) is left out
+    assert list(_atlas_frames([(t, frames[0][1], frames[0][2], None)],
+                              sim.atlas.surface.pieces, sim.atlas.offset)) == []
 
 
 def test_safety_measures_never_mix_stacked_floors(tmp_path):
