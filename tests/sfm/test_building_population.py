@@ -242,3 +242,41 @@ def test_mesh_errors_use_the_files_words(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "hinge" not in err[0] and "\u2195" not in err[0], err
     assert "level 'ground'" in err[0] and "stair 'stair'" in err[0], err
+
+
+# ---------------------------------------------------------------- entrances on a building
+def test_an_entrance_on_an_upper_floor_lets_its_people_in_there(tmp_path):
+    """Issue 45: an entrance (a start area with arrivals) on the first floor of a building
+    under the social force model: its people appear on that floor, in their area, by the
+    schedule (one a second from t = 5 s), and leave down the stair; eos takes the same
+    file and gets the same people out."""
+    b = copy.deepcopy(TWO)
+    b["levels"][1]["start_areas"][0] = {"name": "offices", "count": 8,
+                                        "polygon": [[2, 1], [8, 1], [8, 6], [2, 6]],
+                                        "arrivals": {"rate": 1.0, "start": 5.0}}
+    room = tmp_path / "b.json"
+    room.write_text(json.dumps({"format": "pedmesh-room", "version": 1, "units": "m", **b}))
+    run = pedmesh.build(room, "sfm")
+    sim = run.sim
+    first = sim.atlas.surface.piece_index("first")
+    ids = np.flatnonzero(np.isfinite(sim.arrival))
+    assert len(ids) == 8 and sim.n_waiting == 8
+    seen: dict[int, float] = {}
+    while sim.t < 14.0:
+        sim.step()
+        for k in range(sim.n):
+            i = int(sim.ids[k])
+            if i in ids and i not in seen:
+                seen[i] = sim.t
+                assert sim.piece_of()[k] == first  # on the first floor
+                plan = sim.x[k] - sim.atlas.level_shift("first")
+                assert 2 - 1e-9 <= plan[0] <= 8 + 1e-9 and 1 - 1e-9 <= plan[1] <= 6 + 1e-9
+    assert len(seen) >= 8 and min(seen.values()) >= 5.0 - 1e-9
+    res = pedmesh.simulate(room, "sfm", t_end=300.0)
+    assert res.finished
+    n_hall = res.summary["n_initial"] - 8
+    assert np.isfinite(res.exit_times).sum() == n_hall + 8
+    eos = pedmesh.simulate(room, "eos", t_end=300.0).summary
+    assert eos["status"] == "finished"
+    assert sum(e["people"] for e in eos["safety"]["exits"].values()) == pytest.approx(
+        n_hall + 8, abs=0.5)

@@ -61,7 +61,7 @@ def building_positions(building, atlas, *, seed: int | None = None,
 
 def building_population(building, n: int, seed: int | None = None):
     """Who the levels' start areas' ``n`` people are (premovement, free speed, radius,
-    exits: :func:`pedmesh.population.draw_population` over the building's start areas, in
+    exits, arrival times: :func:`pedmesh.population.draw_population` over the building's start areas, in
     the order of :func:`building_positions`, drawn with ``seed``, 0 without one); None if
     no start area says."""
     from types import SimpleNamespace
@@ -70,7 +70,7 @@ def building_population(building, n: int, seed: int | None = None):
 
     areas = [a for lv in building.levels for a in lv.room.start_areas]
     if not any(getattr(a, k) is not None for a in areas
-               for k in ("premovement", "speed", "radius", "exits")):
+               for k in ("premovement", "speed", "radius", "exits", "arrivals")):
         return None
     counts = [len(a.positions(lv.room.walkable))
               for lv in building.levels for a in lv.room.start_areas]
@@ -90,10 +90,6 @@ class SurfaceSimulation(Simulation):
                  **kwargs) -> None:
         if kwargs.get("desired_velocity") is not None:
             raise ParameterError("a constant desired velocity is not available on buildings")
-        pop = kwargs.get("population")
-        if pop is not None and pop.has_arrivals:
-            raise ParameterError("entrances (start areas with arrivals) are not available on "
-                                 "buildings yet")
         self.atlas = atlas
         h = atlas.hinges
         #: per exit of the open atlas: whether it is a stair edge, the shift [m] that carries
@@ -111,6 +107,22 @@ class SurfaceSimulation(Simulation):
         #: (:class:`BuildingSFMRun` reads them into its stair use)
         self.crossing_log: list[tuple[float, int, int]] = []
         self._set_hinge_lists()
+
+    def _entrance_place(self, a: int):
+        """Start area ``a`` of the building (its levels' start areas in order, as
+        :func:`building_population` draws them), its level's walkable area and that level's
+        shift into the atlas: an entrance's people arrive on its level."""
+        building = self.atlas.surface.building
+        if building is None:
+            raise SimulationError("arrival times need the surface's building (its start "
+                                  "areas)")
+        k = 0
+        for lv in building.levels:
+            areas = lv.room.start_areas
+            if a < k + len(areas):
+                return areas[a - k], lv.room.walkable, self.atlas.level_shift(lv.name)
+            k += len(areas)
+        raise SimulationError(f"no start area {a} in the building (an internal error)")
 
     def _set_hinge_lists(self) -> None:
         """Each stair edge once (from its piece of lower index): its end points [m] on that
@@ -434,11 +446,6 @@ class BuildingSFMRun(SFMRun):
         if seed is not None and (isinstance(seed, bool)
                                  or not isinstance(seed, (int, np.integer)) or seed < 0):
             raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
-        for a in building.start_areas:
-            if a.arrivals is not None:
-                raise ParameterError(
-                    f"start area '{a.name}': entrances ('arrivals') are not available on "
-                    "buildings yet (the social force model takes start areas there)")
         self.building = building
         self.surface = mesh
         walk = self._walking_mesh(building, mesh)

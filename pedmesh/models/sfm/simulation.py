@@ -458,9 +458,6 @@ class Simulation:
         """The waiting lines of the entrances and their free spots (a lattice of the start
         area one body diameter plus ENTRANCE_GAP apart, a radius plus ENTRANCE_GAP off the
         walls)."""
-        room = self.mesh.room
-        if room is None:
-            raise SimulationError("arrival times need the mesh's room (its start areas)")
         wait = np.flatnonzero(np.isfinite(self.arrival))
         self._pending = {}  # area -> ids in the order of arrival
         self._spots = {}  # area -> (spots (k, 2) [m], their triangles, box corners [m])
@@ -468,10 +465,10 @@ class Simulation:
             ids = wait[self._area[wait] == a]
             ids = ids[np.argsort(self.arrival[ids], kind="stable")]
             self._pending[int(a)] = deque(int(i) for i in ids)
-            area = room.start_areas[int(a)]
+            area, walkable, shift = self._entrance_place(int(a))
             rmax = float(self.rad[ids].max())
-            region = room.walkable.buffer(-(rmax + ENTRANCE_GAP))
-            spots = area.lattice(2 * rmax + ENTRANCE_GAP, region)
+            region = walkable.buffer(-(rmax + ENTRANCE_GAP))
+            spots = area.lattice(2 * rmax + ENTRANCE_GAP, region) + shift
             if len(spots) == 0:
                 raise SimulationError(f"entrance '{area.name}' has no room for a body of radius "
                                       f"{rmax:g} m away from the walls")
@@ -482,6 +479,14 @@ class Simulation:
             self._spots[int(a)] = (spots, tri[keep], spots.min(axis=0) - 3.0,
                                    spots.max(axis=0) + 3.0)
         self.n_waiting = len(wait)
+
+    def _entrance_place(self, a: int):
+        """Start area ``a`` (the population's index), the walkable area it lies in and the
+        shift [m] (2,) from that area's coordinates to the mesh's."""
+        room = self.mesh.room
+        if room is None:
+            raise SimulationError("arrival times need the mesh's room (its start areas)")
+        return room.start_areas[a], room.walkable, np.zeros(2)
 
     def _admit(self) -> None:
         """Let in the entrances' people whose time has come, where there is room."""
