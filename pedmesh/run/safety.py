@@ -178,13 +178,12 @@ def _from_result(res, mesh, R: float, kept: KeptDensity | None = None) -> _RunDa
                     _, pts, data = res.pedestrians[k]
                 else:
                     pts, data = read_vtp(f, arrays=names)
-                pts = np.asarray(pts, float)
                 if three_d:
                     piece = data.get("piece")
-                    yield (t, pts, _velocities(data, len(pts), 3),
+                    yield (t, np.asarray(pts, float), _velocities(data, len(pts), 3),
                            None if piece is None else np.asarray(piece, np.int64))
                 else:
-                    yield t, pts[:, :2], _velocities(data, len(pts))
+                    yield t, np.asarray(pts)[:, :2], _velocities(data, len(pts))
 
     ot, of, names = res.outflow
     crossings = res.crossings if particle and res.has_table(F.EXITS) else None

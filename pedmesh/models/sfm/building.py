@@ -61,9 +61,9 @@ def building_positions(building, atlas, *, seed: int | None = None,
 
 def building_population(building, n: int, seed: int | None = None):
     """Who the levels' start areas' ``n`` people are (premovement, free speed, radius,
-    exits, arrival times: :func:`pedmesh.population.draw_population` over the building's start areas, in
-    the order of :func:`building_positions`, drawn with ``seed``, 0 without one); None if
-    no start area says."""
+    exits, arrival times: :func:`pedmesh.population.draw_population` over the building's
+    start areas, in the order of :func:`building_positions`, drawn with ``seed``, 0 without
+    one); None if no start area says."""
     from types import SimpleNamespace
 
     from ...population import draw_population
