@@ -5,6 +5,7 @@ exit fractions of the levels' start areas, under the social force model and the 
 from __future__ import annotations
 
 import copy
+import math
 import json
 
 import numpy as np
@@ -219,6 +220,37 @@ def test_pedestrian_frames_reach_the_atlas_where_the_people_are(tmp_path):
     # a frame without the pieces (written before they were) is left out
     assert list(_atlas_frames([(t, frames[0][1], frames[0][2], None)],
                               sim.atlas.surface.pieces, sim.atlas.offset)) == []
+
+
+def test_the_cone_reads_unit_directions_on_a_stair(tmp_path):
+    """On a stair the desired direction carries the stair's speed factor (0.6 down) as its
+    length, for the driving term; the directions the density cone and the field of vision
+    read stay unit. Before, people walking down read 0.36 of the crowd ahead (0.6 squared)
+    and wanted nearly their free speed in a queue."""
+    from pedmesh.models.sfm.forces import unit_direction
+
+    rng = np.random.default_rng(2)
+    for _ in range(100):
+        th = rng.uniform(0.0, 2.0 * math.pi)
+        u = (math.cos(th), math.sin(th))
+        assert unit_direction(*u) == u  # (unit to round-off: returned as it is)
+        f = rng.uniform(0.3, 0.9)
+        assert unit_direction(f * u[0], f * u[1]) == pytest.approx(u, abs=1e-15)
+    assert unit_direction(0.0, 0.0) == (0.0, 0.0)
+    run = pedmesh.build(_building(tmp_path), "sfm", preset="validated")
+    sim = run.sim
+    stair = sim.atlas.surface.piece_index("stair")
+    seen = 0
+    while sim.t < 15.0 and seen < 50:
+        sim.step()
+        on = np.flatnonzero(sim.piece_of() == stair)
+        if len(on):
+            driving = np.hypot(*sim.desired_directions()[on].T)
+            assert np.allclose(driving[driving > 0], 0.6)  # (walked down)
+            read = np.hypot(*sim._e[on].T)
+            assert np.allclose(read, 1.0, atol=1e-12)
+            seen += 1
+    assert seen >= 50
 
 
 def test_safety_measures_never_mix_stacked_floors(tmp_path):

@@ -62,37 +62,6 @@ def test_the_cone_reads_the_people_ahead():
     assert np.allclose(iso[front & mid], iso[back & mid], rtol=0.02)
 
 
-def test_a_stairs_speed_factor_does_not_change_what_the_cone_reads():
-    """On a building's stair the desired directions carry the stair's speed factor as their
-    length (0.6 down by default); the density cone and the field of vision read the angle
-    only. Before, a person walking down read 0.36 of the crowd ahead (0.6 squared) and
-    wanted nearly its free speed in a queue. Unit directions stay bit for bit."""
-    from pedmesh.models.sfm.forces import cone_weights, pair_terms, unit_direction
-
-    a = 0.6
-    g = [(i * a + (j % 2) * a / 2, j * a * math.sqrt(3) / 2) for i in range(30) for j in range(30)]
-    x = np.array(g, float)
-    e = np.tile([1.0, 0.0], (len(x), 1))
-    cone = np.array([2.0, 4.0])
-    assert np.array_equal(_densities(x, 0.6 * e, cone), _densities(x, e, cone))
-    rng = np.random.default_rng(2)
-    for _ in range(200):
-        dx, dy = rng.normal(size=2)
-        th, ph = rng.uniform(0.0, 2.0 * math.pi, 2)
-        u, w = (math.cos(th), math.sin(th)), (math.cos(ph), math.sin(ph))
-        assert unit_direction(*u) == u  # (unit to round-off: returned as it is)
-        f = rng.uniform(0.3, 0.9)
-        d2 = dx * dx + dy * dy
-        ref = cone_weights(dx, dy, d2, cone, *u, *w)
-        got = cone_weights(dx, dy, d2, cone, f * u[0], f * u[1], w[0], w[1])
-        assert got == pytest.approx(ref, rel=1e-12, abs=1e-15)
-        args = (dx, dy, math.sqrt(d2), 0.1, -0.2, 0.3, 0.35, 2000.0, 1 / 0.08, 1.2e5, 2.4e5,
-                1 / 80.0, 0.5)
-        assert pair_terms(*args, f * u[0], f * u[1], *w) == pytest.approx(
-            pair_terms(*args, *u, *w), rel=1e-12, abs=1e-15)
-    assert unit_direction(0.0, 0.0) == (0.0, 0.0)
-
-
 def test_walls_push_only_on_contact_without_their_social_repulsion():
     """wall_repulsion scales the walls' social term: at 0.2 m from a wall (no contact, r =
     0.15 m) the wall force is A exp((r - d)/B)/m with 1 and nothing with 0; in contact the

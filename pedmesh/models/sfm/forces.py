@@ -31,7 +31,8 @@ def unit_direction(ex, ey):
     """``(ex, ey)`` as a unit vector: the desired direction without the length a stair's
     speed factor gives it (0 stays 0; a unit vector to round-off is returned as it is, so
     runs on rooms keep every bit). The density cone and the field of vision take the
-    cosine of an angle from it."""
+    cosine of an angle from it (:func:`cone_weights`, :func:`pair_terms`), so the kernels
+    keep the directions they read unit (:func:`~pedmesh.models.sfm.kernels.accel`)."""
     e2 = ex * ex + ey * ey
     if e2 > 0.0 and abs(e2 - 1.0) > UNIT_SLACK:
         s = 1.0 / math.sqrt(e2)
@@ -57,16 +58,14 @@ def cone_weights(dx, dy, d2, cone, eix, eiy, ejx, ejy):
     one's neighbour counts ``norm max(0, cos)^p`` times, cos the cosine between one's
     desired direction (``eix, eiy``; ``ejx, ejy``) and the neighbour: the people ahead
     count, those behind do not (a pedestrian adapts the speed to the space in front);
-    with p = 0 both are 1 (the isotropic kernel, bit for bit). The directions are read as
-    unit vectors (:func:`unit_direction`: on a stair they carry its speed factor)."""
+    with p = 0 both are 1 (the isotropic kernel, bit for bit). The directions must be unit
+    vectors: the kernels keep a stair's speed factor out of them (:func:`unit_direction`)."""
     p = cone[0]
     if p <= 0.0:
         return 1.0, 1.0
     if d2 <= 0.0:  # (on top of each other: the mean weight)
         return 1.0, 1.0
     d = math.sqrt(d2)
-    eix, eiy = unit_direction(eix, eiy)
-    ejx, ejy = unit_direction(ejx, ejy)
     return (_cone(-(dx * eix + dy * eiy) / d, p, cone[1]),
             _cone((dx * ejx + dy * ejy) / d, p, cone[1]))
 
@@ -108,8 +107,6 @@ def pair_terms(dx, dy, d, dvx, dvy, rij, sij, A, invB, k, kappa, inv_m, lam, eix
     if lam < 1.0:
         fx, fy = pair_force(dx, dy, d, dvx, dvy, rij, 0.0, invB, k, kappa, sij)
         fs = A * math.exp((sij - d) * invB) / d
-        eix, eiy = unit_direction(eix, eiy)
-        ejx, ejy = unit_direction(ejx, ejy)
         ci = -(dx * eix + dy * eiy) / d
         cj = (dx * ejx + dy * ejy) / d
         wi = lam + (1.0 - lam) * 0.5 * (1.0 + ci)

@@ -35,7 +35,7 @@ ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 from ...eikonal.direction import _inside_packed, _interpolate  # noqa: E402
 from ...speed import shape  # noqa: E402
 from .crowding import crowd_factor_at  # noqa: E402
-from .forces import NO_CONE, cone_weights, pair_force, pair_terms  # noqa: E402
+from .forces import NO_CONE, cone_weights, pair_force, pair_terms, unit_direction  # noqa: E402
 from .hinge_kernels import hinge_accel, hinge_density  # noqa: E402
 
 EXIT_KIND = 3  # BoundaryKind.EXIT
@@ -848,6 +848,9 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
                                        space[3])
             F[i, 0] += (ue[i] * e[i, 0] - v[i, 0]) * inv_tau
             F[i, 1] += (ue[i] * e[i, 1] - v[i, 1]) * inv_tau
+            # the direction the density cone and the field of vision read: unit (on a stair
+            # the interpolated one carries the stair's speed factor, for the driving term)
+            e[i, 0], e[i, 1] = unit_direction(e[i, 0], e[i, 1])
 
 
 # ------------------------------------------------------------------ exits and reflection

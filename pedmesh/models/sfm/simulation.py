@@ -35,6 +35,7 @@ import numpy as np
 
 from ...errors import ParameterError, SimulationError
 from ...mesh.triangle_mesh import TriMesh
+from .forces import UNIT_SLACK
 from .params import SFMNumerics, SocialForceParams
 from .walls import WallSet
 
@@ -66,6 +67,17 @@ class _Timers:
     steps: int = 0
     routes: int = 0
     extra: dict = field(default_factory=dict)
+
+
+def unit_rows(e: np.ndarray) -> np.ndarray:
+    """Desired directions (k, 2) as the density cone reads them: unit, without a stair's
+    speed factor (:func:`~pedmesh.models.sfm.forces.unit_direction`, row by row: unit rows
+    to round-off and zero rows are returned as they are)."""
+    e = np.array(e, float)
+    e2 = np.einsum("ij,ij->i", e, e)
+    scale = (e2 > 0.0) & (np.abs(e2 - 1.0) > UNIT_SLACK)
+    e[scale] /= np.sqrt(e2[scale])[:, None]
+    return e
 
 
 class Simulation:
@@ -155,7 +167,7 @@ class Simulation:
         self._law = self.params.kernel_law()  # the desired-speed law (pedmesh.speed)
         self._set_routes(reroute, desired_velocity)
         if self.params.density_cone > 0 and self.n:  # the cone looks along the route
-            self._e[: self.n] = self._directions(0, self.n)
+            self._e[: self.n] = unit_rows(self._directions(0, self.n))
         from .hinge_kernels import empty_pairs
 
         #: the pairs across a building's stair edges (none in a room)
@@ -528,7 +540,7 @@ class Simulation:
                 self.rho[n] = rho
                 self.n = n + 1
                 e = self._directions(n, n + 1)[0]
-                self._e[n] = e
+                self._e[n] = unit_rows(e[None, :])[0]
                 self.v[n] = e * self.u0_of[i] * shape(self._law, rho)
                 self.n_waiting -= 1
 
