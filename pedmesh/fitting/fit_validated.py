@@ -9,7 +9,10 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
     moved the objective by what another realisation does; the point was kept.
 
 ``--law refit`` (issue 44, under way): ``--law exits``' model fitted anew, Nelder-Mead
-    from its point (which missed four targets by 1-11 %).
+    from its point (which missed four targets by 1-11 %). The first 16 evaluations
+    (``fit_evaluations_refit.csv``: the point itself, F = 5.94 in this realisation, and the
+    simplex about it and its first moves, F = 6.09-7.21) found nothing better; the CSV
+    resumes.
 
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
