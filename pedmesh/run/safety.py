@@ -352,9 +352,10 @@ def _compute(data: _RunData, room, n_initial, mesh=None) -> tuple[dict, dict[str
     }
     if building:  # the whole building's peak in its level's plan, and a record per level
         names = [p.name for p in pieces]
-        k = int(np.argmin(np.hypot(centroids[:, 0] - peak.x, centroids[:, 1] - peak.y))) \
-            if peak.x is not None else None
-        record["peak_density"]["level"] = names[piece[k]] if k is not None else None
+        record["peak_density"]["level"] = None
+        for where in (record["peak_density"], pressure):  # (the crowd pressure's alike)
+            if where is not None and where.get("x") is not None:
+                _to_level_plan(where, centroids, piece, offset, names)
         record["levels"] = {}
         for j, p in enumerate(pieces):
             if p.kind != "level":
@@ -363,16 +364,16 @@ def _compute(data: _RunData, room, n_initial, mesh=None) -> tuple[dict, dict[str
             sub_rec, _, _ = _density_record(t, local[:, cells], areas[cells],
                                             centroids[cells] - offset[j], over)
             record["levels"][p.name] = sub_rec
-        if record["peak_density"]["x"] is not None and k is not None:
-            record["peak_density"]["x"] -= float(offset[piece[k]][0])
-            record["peak_density"]["y"] -= float(offset[piece[k]][1])
-        if pressure is not None and pressure.get("x") is not None:  # (as the peak density)
-            kp = int(np.argmin(np.hypot(centroids[:, 0] - pressure["x"],
-                                        centroids[:, 1] - pressure["y"])))
-            pressure["level"] = names[piece[kp]]
-            pressure["x"] -= float(offset[piece[kp]][0])
-            pressure["y"] -= float(offset[piece[kp]][1])
     return record, fields
+
+
+def _to_level_plan(where: dict, centroids, piece, offset, names) -> None:
+    """A building's record of a place on its atlas (``x``, ``y`` [m]) given as the level
+    (or stair) of the nearest cell, ``level``, and the place in that one's plan."""
+    k = int(np.argmin(np.hypot(centroids[:, 0] - where["x"], centroids[:, 1] - where["y"])))
+    where["level"] = names[piece[k]]
+    where["x"] -= float(offset[piece[k]][0])
+    where["y"] -= float(offset[piece[k]][1])
 
 
 def write_safety_vtu(path: str | Path, *, points: np.ndarray, triangles: np.ndarray,

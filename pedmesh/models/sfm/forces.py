@@ -13,7 +13,7 @@ import numpy as np
 from ...speed import cone_norm
 
 __all__ = ["pair_force", "pair_terms", "cone_norm", "cone_weights", "unit_direction",
-           "NO_CONE", "UNIT_SLACK"]
+           "unit_rows", "NO_CONE", "UNIT_SLACK"]
 
 #: the kernel density's (exponent, normalisation) without a cone: every neighbour counts
 #: fully (the paper's eq3)
@@ -38,6 +38,16 @@ def unit_direction(ex, ey):
         s = 1.0 / math.sqrt(e2)
         return ex * s, ey * s
     return ex, ey
+
+
+@nb.njit(cache=True)
+def unit_rows(e):
+    """Directions ``e`` (k, 2) as the density cone reads them: a copy with each row through
+    :func:`unit_direction`."""
+    out = np.empty_like(e)
+    for i in range(e.shape[0]):
+        out[i, 0], out[i, 1] = unit_direction(e[i, 0], e[i, 1])
+    return out
 
 
 @nb.njit(cache=True, inline="always")

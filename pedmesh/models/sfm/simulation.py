@@ -35,7 +35,7 @@ import numpy as np
 
 from ...errors import ParameterError, SimulationError
 from ...mesh.triangle_mesh import TriMesh
-from .forces import UNIT_SLACK
+from .forces import unit_rows
 from .params import SFMNumerics, SocialForceParams
 from .walls import WallSet
 
@@ -67,17 +67,6 @@ class _Timers:
     steps: int = 0
     routes: int = 0
     extra: dict = field(default_factory=dict)
-
-
-def unit_rows(e: np.ndarray) -> np.ndarray:
-    """Desired directions (k, 2) as the density cone reads them: unit, without a stair's
-    speed factor (:func:`~pedmesh.models.sfm.forces.unit_direction`, row by row: unit rows
-    to round-off and zero rows are returned as they are)."""
-    e = np.array(e, float)
-    e2 = np.einsum("ij,ij->i", e, e)
-    scale = (e2 > 0.0) & (np.abs(e2 - 1.0) > UNIT_SLACK)
-    e[scale] /= np.sqrt(e2[scale])[:, None]
-    return e
 
 
 class Simulation:
@@ -556,13 +545,16 @@ class Simulation:
         cells in that order, so the rows they read follow one another in memory
         (benchmarks/sfm.py ``--converged-ab``: about 8 % of a step on Example 2 against the
         order of the route mesh's triangles)."""
+        from . import kernels as K
+
         n = self.n
         if n < 2:
             return
-        x = self.x[:n]
-        ci = np.clip(((x[:, 0] - self._cx0) * self._cinv).astype(np.int64), 0, self._cnx - 1)
-        cj = np.clip(((x[:, 1] - self._cy0) * self._cinv).astype(np.int64), 0, self._cny - 1)
-        order = np.argsort(ci * self._cny + cj, kind="stable")  # (kernels._cell_of's index)
+        # the cell list's own stable counting sort, into arrays of its own (the run's cell
+        # list stays as the kernels left it)
+        order = np.empty(n, np.int64)
+        K.build_cells(self.x, n, self._cx0, self._cy0, self._cinv, self._cnx, self._cny,
+                      np.empty_like(self._cell_start), order)
         for a in self._rows():
             a[:n] = a[:n][order]
 
