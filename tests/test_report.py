@@ -327,6 +327,17 @@ def browser():
     driver.quit()
 
 
+def _open(browser, path: Path, seconds: float = 120.0) -> None:
+    """Open a report and wait until the page has loaded (``document.readyState`` is
+    ``complete``). Under load chromedriver can return from ``get`` on a large file page while
+    it is still parsing; a page that never completes fails the test after ``seconds``."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    browser.get(path.resolve().as_uri())
+    WebDriverWait(browser, seconds, poll_frequency=0.2).until(
+        lambda d: d.execute_script("return document.readyState") == "complete")
+
+
 def _not_blank(png: bytes) -> None:
     from PIL import Image
 
@@ -343,8 +354,7 @@ def test_report_in_headless_chromium(browser, reports, kind):
 
     path, shown, _ = reports[kind]
     browser.get_log("browser")  # drop what an earlier page logged
-    browser.get(path.resolve().as_uri())
-    assert browser.execute_script("return document.readyState") == "complete"
+    _open(browser, path)
     severe = [e for e in browser.get_log("browser") if e["level"] == "SEVERE"]
     assert severe == []
     # every image decoded
@@ -410,8 +420,7 @@ def test_building_report_names_every_level_and_stair(browser, office_report,
 
     path, run = office_report
     office = load_room(geometries_dir / "office.json")
-    browser.get(path.resolve().as_uri())
-    assert browser.execute_script("return document.readyState") == "complete"
+    _open(browser, path)
     assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
     text = browser.find_element(By.TAG_NAME, "body").text
     for lv in office.levels:
@@ -594,8 +603,7 @@ def _plausibility_in_browser(browser, path: Path) -> tuple[list[str], str, str]:
     from selenium.webdriver.common.by import By
 
     browser.get_log("browser")
-    browser.get(path.resolve().as_uri())
-    assert browser.execute_script("return document.readyState") == "complete"
+    _open(browser, path)
     assert [e for e in browser.get_log("browser") if e["level"] == "SEVERE"] == []
     panel = browser.find_element(By.ID, "plausibility")
     verdicts = [e.get_attribute("class").split()[-1]
