@@ -9,6 +9,14 @@ from __future__ import annotations
 
 from ._version import __version__
 
+try:  # stale compiled kernels deleted before any is loaded (pedmesh._kernel_cache)
+    from ._kernel_cache import check as _check_kernel_cache
+
+    _check_kernel_cache()
+    del _check_kernel_cache
+except Exception:  # (never a reason for the import to fail: numba's own caches stand)
+    pass
+
 from .errors import (
     GeometryError,
     MeshError,
