@@ -7,21 +7,28 @@ module-level constants: when only such another module changes (a ``git pull`` in
 editable install, an edit), the kernel's cache still matches its own file and numba would
 load the old machine code, the old physics, without a word.
 
-So, on ``import pedmesh``, :func:`check` compares each module's sources with those recorded
-when its caches were last known to match: its own file and every pedmesh module whose
-compiled functions or constants it imports, followed from module to module. The cached
-code of every module with a changed source among those is deleted, and numba compiles it
-anew on first use. When nothing changed (the usual case) the check is one ``stat`` per
-source file (about 1 ms); the record is ``pedmesh/__pycache__/kernel_sources.json``.
+So, on ``import pedmesh``, :func:`check` compares each compiled module's sources with those
+recorded when its caches were last known to match, and deletes the cached code of every
+compiled module with a changed source among them; numba compiles it anew on first use.
+When nothing changed (the usual case) the check walks the package and reads the record
+(``pedmesh/__pycache__/kernel_sources.json``): about 2-3 ms.
 
-What counts as a dependency of module ``M`` (read from its ``import`` statements):
+A compiled module is one that imports ``numba`` (anywhere in the file). Its sources are
+its own file and, read from its ``import`` statements:
 
-* a pedmesh module that defines compiled code (it imports ``numba``), imported by ``M``;
-* a pedmesh module ``M`` imports an UPPER_CASE name from (a constant numba may freeze).
+* the pedmesh modules it imports UPPER_CASE names from (constants numba may freeze) or
+  imports as modules (``from . import forces``: their constants may be read as
+  ``forces.X``);
+* the compiled pedmesh modules it imports anything from, and their sources in turn.
 
-A module that mentions neither can change without touching a kernel. Where the record
-cannot be written (a read-only install), nothing is deleted: numba keeps its caches
-elsewhere then, and a read-only install does not change under them.
+Conservative where it cannot tell (an UPPER_CASE name used only in Python code counts:
+any edit of ``parameters.py`` recompiles the modules that take its defaults), blind where
+the imports do not say it: a lowercase module-level array or a constant passed on through
+a module that does not import numba. Known limits: a process that imported a kernel module
+before an edit and compiles it after another process ran the check writes the old code
+under the new record (delete the caches by hand then, docs/development.md); and where the
+package folder cannot be written (a read-only install, a shared checkout) the check is
+skipped, and a cache folder that cannot be written is warned about and left as it is.
 """
 
 from __future__ import annotations
@@ -32,7 +39,9 @@ from pathlib import Path
 
 __all__ = ["check", "kernel_dependencies"]
 
-ROOT = Path(__file__).resolve().parent
+#: the package as numba names its files (``os.path.abspath``, symbolic links not followed:
+#: numba's cache folders outside the tree are named after that path)
+ROOT = Path(os.path.abspath(__file__)).parent
 PACKAGE = ROOT.name
 RECORD = "kernel_sources.json"
 #: the record's layout (a record of another version is ignored, as if there were none)
@@ -89,10 +98,10 @@ def _imports(rel: str, text: str, files: set[str], package: str = PACKAGE
         target = _module_file(parts, files)
         if target is not None:
             out.append((target, any(a.name.isupper() for a in names)))
-        for a in names:  # ``from . import module``
+        for a in names:  # ``from . import module``: its constants may be read as C.X
             sub = _module_file(parts + [a.name], files)
             if sub is not None:
-                out.append((sub, False))
+                out.append((sub, True))
 
     for node in ast.walk(tree):
         if isinstance(node, ast.ImportFrom):
@@ -171,7 +180,29 @@ def _drop_caches(root: Path, rel: str) -> int:
                     n += 1
                 except FileNotFoundError:
                     pass
+                except OSError as exc:  # (a folder not ours to write: numba's own check)
+                    import warnings
+
+                    warnings.warn(f"pedmesh: could not delete the stale compiled code {f}: "
+                                  f"{exc}", RuntimeWarning, stacklevel=3)
     return n
+
+
+def _valid(record) -> dict:
+    """``record`` if it is a record of this layout, else {} (as if there were none)."""
+    try:
+        if record.get("version") != VERSION:
+            return {}
+        files, imports = record["files"], record["imports"]
+        for k, v in files.items():
+            size, mtime = v
+            int(size), int(mtime), str(k)
+        for k, (c, imps) in imports.items():
+            for t, u in imps:
+                str(t), bool(u)
+        return record
+    except (AttributeError, KeyError, TypeError, ValueError):
+        return {}
 
 
 def check(root: Path = ROOT) -> list[str]:
@@ -180,9 +211,7 @@ def check(root: Path = ROOT) -> list[str]:
     record_path = root / "__pycache__" / RECORD
     now = _sources(root)
     try:
-        old = json.loads(record_path.read_text())
-        if old.get("version") != VERSION:
-            old = {}
+        old = _valid(json.loads(record_path.read_text()))
     except (OSError, ValueError):
         old = {}
     old_files = old.get("files", {})

@@ -21,8 +21,10 @@ FILES = {
     "sub/__init__.py": "",
     "sub/h.py": "from numba import njit\nfrom ..a import f\n",
     "ab.py": "import numba\n",  # a file name that starts like another's
+    "k.py": "import numba\nfrom . import consts as C\n",  # read as C.LIMIT in a kernel
+    "consts.py": "LIMIT = 3\n",
 }
-CACHED = ("a", "b", "d", "g", "ab", "sub/h")
+CACHED = ("a", "b", "d", "g", "ab", "sub/h", "k")
 
 
 def _make(root: Path) -> None:
@@ -81,7 +83,7 @@ def test_nothing_changed_keeps_every_cache(pkg):
 def test_a_compiled_module_changed_drops_it_and_its_users(pkg):
     _touch(pkg, "a.py")
     assert K.check(pkg) == ["a.py", "b.py", "sub/h.py"]
-    assert _cached(pkg) == {"d", "g", "ab"}
+    assert _cached(pkg) == {"d", "g", "ab", "k"}
     assert K.check(pkg) == []  # recorded: nothing more to do
 
 
@@ -124,3 +126,38 @@ def test_pedmesh_itself_is_recorded_and_unchanged_after_import():
         for f in K._sources(K.ROOT)})
     # the case that was met: kernels.py inlines forces.py
     assert "models/sfm/forces.py" in deps["models/sfm/kernels.py"]
+
+
+def test_a_module_imported_as_a_module_counts(pkg):
+    """``from . import consts as C`` and ``C.LIMIT`` in a kernel: consts is a source of k."""
+    _touch(pkg, "consts.py")
+    assert K.check(pkg) == ["k.py"]
+
+
+@pytest.mark.parametrize("text", ["[]", "null", "{\"version\": 1, \"files\": 3}",
+                                  "{\"version\": 1, \"files\": {}, \"imports\": {\"a.py\": 1}}",
+                                  "not json"])
+def test_a_broken_record_counts_as_none(pkg, text):
+    """Every compiled module's caches are dropped once and the record is written anew."""
+    (pkg / "__pycache__" / K.RECORD).write_text(text)
+    assert set(K.check(pkg)) == {f"{r}.py" for r in CACHED}
+    assert K.check(pkg) == []
+
+
+def test_a_cache_that_cannot_be_deleted_is_warned_about_and_recorded(pkg, monkeypatch):
+    """A cache folder not ours to write: a warning names the file; the record is still
+    written, so the other modules' caches are not dropped again at every import."""
+    real = Path.unlink
+
+    def unlink(self, *a, **k):
+        if self.name.startswith("b."):
+            raise PermissionError("read-only")
+        return real(self, *a, **k)
+
+    _touch(pkg, "a.py")
+    monkeypatch.setattr(Path, "unlink", unlink)
+    with pytest.warns(RuntimeWarning, match="b.f-4"):
+        assert K.check(pkg) == ["a.py", "b.py", "sub/h.py"]
+    monkeypatch.undo()
+    _cache(pkg)
+    assert K.check(pkg) == []
