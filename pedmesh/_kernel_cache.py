@@ -78,20 +78,17 @@ def _module_file(parts: list[str], files: set[str]) -> str | None:
 
 def _imports(rel: str, text: str, files: set[str], package: str = PACKAGE
              ) -> tuple[bool, list[tuple[str, bool]]]:
-    """(whether ``rel`` defines compiled code, [(imported pedmesh file, whether an
-    UPPER_CASE name is taken from it)]) of the source ``text`` of the file ``rel``."""
+    """(whether ``rel`` defines compiled code (imports ``numba``), [(imported pedmesh file,
+    whether UPPER_CASE names are taken from it or it is imported as a module)]) of the
+    source ``text`` of the file ``rel``."""
     import ast
 
     try:
         tree = ast.parse(text)
     except SyntaxError:
         return "numba" in text, []
-    compiled = any(
-        (isinstance(n, ast.Import) and any(a.name.split(".")[0] == "numba" for a in n.names))
-        or (isinstance(n, ast.ImportFrom) and not n.level and n.module
-            and n.module.split(".")[0] == "numba")
-        for n in ast.walk(tree))
     pkg = rel.split("/")[:-1]  # the package the file is in
+    compiled = False
     out = []
 
     def add(parts: list[str], names) -> None:
@@ -108,27 +105,30 @@ def _imports(rel: str, text: str, files: set[str], package: str = PACKAGE
             mod = node.module.split(".") if node.module else []
             if node.level:
                 up = node.level - 1
-                if up > len(pkg):
-                    continue
-                add(pkg[: len(pkg) - up] + mod, node.names)
+                if up <= len(pkg):
+                    add(pkg[: len(pkg) - up] + mod, node.names)
+            elif mod and mod[0] == "numba":
+                compiled = True
             elif mod and mod[0] == package:
                 add(mod[1:], node.names)
         elif isinstance(node, ast.Import):
             for a in node.names:
                 parts = a.name.split(".")
-                if parts[0] == package:
+                if parts[0] == "numba":
+                    compiled = True
+                elif parts[0] == package:  # ``import pedmesh.x as X``: X.CONST, as above
                     target = _module_file(parts[1:], files)
                     if target is not None:
-                        out.append((target, False))
+                        out.append((target, True))
     return compiled, out
 
 
 def kernel_dependencies(info: dict[str, tuple[bool, list[tuple[str, bool]]]]
                         ) -> dict[str, set[str]]:
     """{file: the files whose change makes its cached machine code stale} (itself
-    included), from :func:`_imports` of every file: the compiled modules it imports and
-    the modules it takes UPPER_CASE names from, and theirs, transitively through the
-    compiled ones."""
+    included), from :func:`_imports` of every file: the compiled modules it imports, the
+    modules it takes UPPER_CASE names from or imports as modules, and theirs, transitively
+    through the compiled ones."""
     direct = {}
     for f, (_, imps) in info.items():
         direct[f] = {t for t, upper in imps if t in info and (info[t][0] or upper)}

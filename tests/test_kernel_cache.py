@@ -23,8 +23,9 @@ FILES = {
     "ab.py": "import numba\n",  # a file name that starts like another's
     "k.py": "import numba\nfrom . import consts as C\n",  # read as C.LIMIT in a kernel
     "consts.py": "LIMIT = 3\n",
+    "m.py": "import numba\nimport pkg.consts as C\n",  # the same, imported absolutely
 }
-CACHED = ("a", "b", "d", "g", "ab", "sub/h", "k")
+CACHED = ("a", "b", "d", "g", "ab", "sub/h", "k", "m")
 
 
 def _make(root: Path) -> None:
@@ -83,7 +84,7 @@ def test_nothing_changed_keeps_every_cache(pkg):
 def test_a_compiled_module_changed_drops_it_and_its_users(pkg):
     _touch(pkg, "a.py")
     assert K.check(pkg) == ["a.py", "b.py", "sub/h.py"]
-    assert _cached(pkg) == {"d", "g", "ab", "k"}
+    assert _cached(pkg) == {"d", "g", "ab", "k", "m"}
     assert K.check(pkg) == []  # recorded: nothing more to do
 
 
@@ -129,9 +130,10 @@ def test_pedmesh_itself_is_recorded_and_unchanged_after_import():
 
 
 def test_a_module_imported_as_a_module_counts(pkg):
-    """``from . import consts as C`` and ``C.LIMIT`` in a kernel: consts is a source of k."""
+    """``from . import consts as C`` (or ``import pkg.consts as C``) and ``C.LIMIT`` in a
+    kernel: consts is a source of k (and of m)."""
     _touch(pkg, "consts.py")
-    assert K.check(pkg) == ["k.py"]
+    assert K.check(pkg) == ["k.py", "m.py"]
 
 
 @pytest.mark.parametrize("text", ["[]", "null", "{\"version\": 1, \"files\": 3}",
