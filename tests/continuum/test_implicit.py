@@ -269,3 +269,34 @@ def test_mac1_split_repulsion_converges_in_dt_and_to_the_explicit_mac1(box):
     assert all(a < b for a, b in zip(orders, orders[1:]))  # towards the asymptotic order
     assert 0.75 < orders[-1] < 1.5
     assert l1(ref, ref_ex) / mass < 0.011
+
+
+@pytest.mark.parametrize("rings", [0, 1, 2, 3])
+def test_active_set_kernel_is_the_rings_of_the_occupied_cells(box, rings):
+    """fv_kernels.active_set against a plain reference: the cells above active_eps grown by
+    ``rings`` face neighbours, the edges whose cells are all active, and their count (its
+    passes alternate between two arrays, so every parity of ``rings`` is checked)."""
+    from pedmesh.models.continuum import fv_kernels as K
+
+    mesh = box
+    nbr = mesh.triangle_neighbors
+    e2t = np.ascontiguousarray(mesh.edge_triangles).astype(np.int64)
+    rng = np.random.default_rng(rings)
+    Q = np.zeros((mesh.n_triangles, 3))
+    Q[rng.choice(mesh.n_triangles, 5, replace=False), 0] = 1.0
+    Q[rng.choice(mesh.n_triangles, 5, replace=False), 0] = 1e-9  # below eps
+    on = Q[:, 0] > 1e-6
+    for _ in range(rings):
+        grown = on.copy()
+        for k in range(3):
+            j = nbr[:, k]
+            grown |= (j >= 0) & on[np.maximum(j, 0)]
+        on = grown
+    r = e2t[:, 1]
+    live_ref = on[e2t[:, 0]] & ((r < 0) | on[np.maximum(r, 0)])
+    cact = np.zeros(mesh.n_triangles, np.bool_)
+    live = np.zeros(len(e2t), np.bool_)
+    n = K.active_set(Q, nbr, e2t, 1e-6, rings, cact, live)
+    np.testing.assert_array_equal(cact, on)
+    np.testing.assert_array_equal(live, live_ref)
+    assert n == on.sum() and 0 < n < mesh.n_triangles

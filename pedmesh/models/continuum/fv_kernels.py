@@ -180,44 +180,65 @@ def velocity_bounds(Q, nbr, rho_cut, lo, hi, active, cact):
 def active_set(Q, nbr, e2t, eps, rings, cact, live):
     """The active set of a step: the cells with a density above ``eps`` [ped/m^2] and those
     within ``rings`` face neighbours of them (``cact`` (m,)), and the live edges, whose
-    cells are all active (``live`` (n_edges,)). Returns the number of active cells. Each
-    pass is a map over the cells or edges, on the threads."""
+    cells are all active (``live`` (n_edges,)). Returns the number of active cells.
+
+    Each pass is a map over the cells or edges, on the threads, ``rings + 1`` of them (a
+    parallel region costs about 14 us on Example 2's 5,800 cells, the work of a pass about
+    1 us): the first ring reads the densities directly, the rings alternate between
+    ``cact`` and a work array so that the last writes ``cact``, the last also counts, and
+    one pass marks the live edges."""
     m = Q.shape[0]
     nb_ = (m + BLOCK - 1) // BLOCK
-    for c_ in nb.prange(NCHUNK):
-        for b_ in range(c_, nb_, NCHUNK):
-            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
-                cact[i] = Q[i, 0] > eps
+    counts = np.zeros(NCHUNK, np.int64)
     new = np.empty(m, np.bool_)
-    for _ in range(rings):
+    if rings <= 0:
         for c_ in nb.prange(NCHUNK):
+            k = 0
             for b_ in range(c_, nb_, NCHUNK):
                 for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
-                    on = cact[i]
+                    on = Q[i, 0] > eps
+                    cact[i] = on
+                    k += on
+            counts[c_] = k
+    else:
+        # ring 1 into the array the parity makes the last ring write to cact
+        first = cact if rings % 2 == 1 else new
+        for c_ in nb.prange(NCHUNK):
+            k = 0
+            for b_ in range(c_, nb_, NCHUNK):
+                for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                    on = Q[i, 0] > eps
                     if not on:
-                        for k in range(3):
-                            j = nbr[i, k]
-                            if j >= 0 and cact[j]:
+                        for j_ in range(3):
+                            j = nbr[i, j_]
+                            if j >= 0 and Q[j, 0] > eps:
                                 on = True
                                 break
-                    new[i] = on
-        for c_ in nb.prange(NCHUNK):
-            for b_ in range(c_, nb_, NCHUNK):
-                for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
-                    cact[i] = new[i]
+                    first[i] = on
+                    k += on
+            counts[c_] = k
+        for r_ in range(1, rings):
+            src, dst = (new, cact) if (rings - r_) % 2 == 1 else (cact, new)
+            for c_ in nb.prange(NCHUNK):
+                k = 0
+                for b_ in range(c_, nb_, NCHUNK):
+                    for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
+                        on = src[i]
+                        if not on:
+                            for j_ in range(3):
+                                j = nbr[i, j_]
+                                if j >= 0 and src[j]:
+                                    on = True
+                                    break
+                        dst[i] = on
+                        k += on
+                counts[c_] = k
     n_e = e2t.shape[0]
     for c_ in nb.prange(NCHUNK):
         for b_ in range(c_, (n_e + BLOCK - 1) // BLOCK, NCHUNK):
             for e in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
                 r = e2t[e, 1]
                 live[e] = cact[e2t[e, 0]] and (r < 0 or cact[r])
-    counts = np.zeros(NCHUNK, np.int64)
-    for c_ in nb.prange(NCHUNK):
-        k = 0
-        for b_ in range(c_, nb_, NCHUNK):
-            for i in range(b_ * BLOCK, min(m, (b_ + 1) * BLOCK)):
-                k += cact[i]
-        counts[c_] = k
     return counts.sum()
 
 
