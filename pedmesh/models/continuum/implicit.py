@@ -132,25 +132,37 @@ def _faces(V, Rq, L, R, nx, ny, ln, tau, areas, dt, kind, prm, cact, livef, thr,
                 imp[f] = a[f] > thr * min(areas[i], areas[j])
 
 
+@nb.njit(**FAST, inline="always")
+def _face_mass(f, imp, G, a, rho_sol, V, L, R):
+    """The face mass ``G + a (rho_L - rho_R)`` of face ``f`` before the limiter (the
+    densities of the solution on implicit faces ``imp``, those of ``V`` on the others)."""
+    if imp[f]:
+        return G[f] + a[f] * (rho_sol[L[f]] - rho_sol[R[f]])
+    return G[f] + a[f] * (V[L[f], 0] - V[R[f], 0])
+
+
+@nb.njit(**FAST, inline="always")
+def _limited_mass(f, imp, G, a, rho_sol, V, L, R, lim):
+    """The face mass of face ``f`` scaled by the share ``lim`` of the cell it leaves."""
+    x = _face_mass(f, imp, G, a, rho_sol, V, L, R)
+    return x * (lim[L[f]] if x > 0.0 else lim[R[f]])
+
+
 @nb.njit(**PAR)
 def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, eny, eln,
-           kind, prm, tr, th, enthalpy, dt, rho_vac, umax, cact, livef, X, W, out):
+           kind, prm, tr, th, enthalpy, dt, rho_vac, umax, cact, livef, W, out):
     """Face masses ``X = G + a (rho_L - rho_R)`` (the densities of the solution on implicit
     faces ``imp``, those of the explicit stage ``V`` on the others), limited so that no cell
     loses more than it holds, applied to the density; the momentum gets the pressure force
     of the new density and the momentum the face masses carry. Cells outside the active set
-    ``cact`` keep their state, faces that are not live (``livef``) pass nothing. ``W``
-    (5, m) work array."""
-    n_e = L.shape[0]
+    ``cact`` keep their state, faces that are not live (``livef``) pass nothing (their
+    ``a`` and ``G`` are 0). ``W`` (5, m) work array.
+
+    Three passes over the cells (a parallel region costs about as much as a pass's work on
+    Example 2): each cell computes the masses of its faces itself (both cells of a face the
+    same number), so no pass over the faces stores them."""
     m = areas.shape[0]
     lim, ux, uy, hc, pc = W[0], W[1], W[2], W[3], W[4]
-    for c_ in nb.prange(NCHUNK):
-        for b_ in range(c_, (n_e + BLOCK - 1) // BLOCK, NCHUNK):
-            for f in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
-                if imp[f]:
-                    X[f] = G[f] + a[f] * (rho_sol[L[f]] - rho_sol[R[f]])
-                else:
-                    X[f] = G[f] + a[f] * (V[L[f], 0] - V[R[f], 0])
     # per cell: the share of its outflows it can afford, and its velocity
     for c_ in nb.prange(NCHUNK):
         for b_ in range(c_, (m + BLOCK - 1) // BLOCK, NCHUNK):
@@ -159,17 +171,13 @@ def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, e
                 for k in range(3):
                     f = cf[i, k]
                     if f >= 0:
-                        x = cs[i, k] * X[f]
+                        x = cs[i, k] * _face_mass(f, imp, G, a, rho_sol, V, L, R)
                         if x > 0.0:
                             o += x
                 have = areas[i] * max(V[i, 0], 0.0)
                 lim[i] = 1.0 if o <= have else have / o
                 if cact[i]:
                     _, ux[i], uy[i] = _prim(V[i, 0], V[i, 1], V[i, 2], rho_vac, umax)
-    for c_ in nb.prange(NCHUNK):
-        for b_ in range(c_, (n_e + BLOCK - 1) // BLOCK, NCHUNK):
-            for f in range(b_ * BLOCK, min(n_e, (b_ + 1) * BLOCK)):
-                X[f] *= lim[L[f]] if X[f] > 0.0 else lim[R[f]]
     # the density with its enthalpy and pressure, then the momentum (faces gathered per
     # cell in a fixed order)
     for c_ in nb.prange(NCHUNK):
@@ -182,7 +190,7 @@ def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, e
                 for k in range(3):
                     f = cf[i, k]
                     if f >= 0:
-                        r -= cs[i, k] * X[f]
+                        r -= cs[i, k] * _limited_mass(f, imp, G, a, rho_sol, V, L, R, lim)
                 r /= areas[i]
                 if r < 0.0:  # round-off below an emptied cell
                     r = 0.0
@@ -207,7 +215,7 @@ def _apply(V, rho_sol, a, G, imp, L, R, nx, ny, ln, areas, cf, cs, ecell, enx, e
                     # momentum of the face mass, with the velocity of the cell it leaves
                     sg = cs[i, k]  # +1: the face's normal points out of i
                     j = R[f] if sg > 0 else L[f]
-                    x = sg * X[f]  # > 0: out of i
+                    x = sg * _limited_mass(f, imp, G, a, rho_sol, V, L, R, lim)  # > 0: out
                     src = i if x > 0.0 else j
                     mx -= x * ia * ux[src]
                     my -= x * ia * uy[src]
@@ -336,7 +344,6 @@ class ImplicitPressure:
         k = len(interior)
         self._a = np.empty(k)
         self._G = np.empty(k)
-        self._X = np.empty(k)
         self._imp = np.zeros(k, np.bool_)
         self._W = np.empty((5, m))
         #: statistics: solves, conjugate-gradient iterations, unknowns (summed)
@@ -366,7 +373,7 @@ class ImplicitPressure:
         _apply(V, rho, a, G, imp, self.L, self.R, self.nx, self.ny, self.ln, self.areas,
                self.cf, self.cs, self.ecell, self.enx, self.eny, self.eln, self.kind, self.prm,
                self.tr, self.th, self.enthalpy, dt, self.rho_vac, self.u_max, cact, livef,
-               self._X, self._W, out)
+               self._W, out)
         return out
 
     def subtract_pressure_force(self, rho: np.ndarray, out: np.ndarray,
