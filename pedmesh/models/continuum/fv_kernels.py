@@ -183,7 +183,7 @@ def active_set(Q, nbr, e2t, eps, rings, cact, live):
     cells are all active (``live`` (n_edges,)). Returns the number of active cells.
 
     Each pass is a map over the cells or edges, on the threads, ``rings + 1`` of them (a
-    parallel region costs about 14 us on Example 2's 5,800 cells, the work of a pass about
+    parallel region costs about 14 us on Example 2's 5,400 cells, the work of a pass about
     1 us): the first ring reads the densities directly, the rings alternate between
     ``cact`` and a work array so that the last writes ``cact``, the last also counts, and
     one pass marks the live edges."""
