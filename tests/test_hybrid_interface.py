@@ -86,6 +86,17 @@ def test_split_keeps_the_boundary_and_makes_each_interface_edge_an_exit(corridor
         split_mesh(mesh, z[:-1])
 
 
+def test_split_refuses_a_building():
+    from pedmesh.mesh.atlas import GluedMesh
+
+    class Glued(GluedMesh):  # (its type is what is checked, not its contents)
+        def __init__(self):
+            pass
+
+    with pytest.raises(ParameterError, match="room's mesh only"):
+        split_mesh(Glued(), np.zeros(3, bool))
+
+
 def test_the_interface_counts_every_person_exactly(corridor):
     """eos on the continuum's part, a crowd walking east into the agent zone: the mass
     inside plus what left through the room's exit and through each interface edge is the

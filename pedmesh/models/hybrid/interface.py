@@ -83,6 +83,9 @@ def split_mesh(mesh: TriMesh, agents: np.ndarray) -> ContinuumPart:
     the agents (see the module docstring). The sub-mesh keeps the parent's walls,
     obstacles and exits where they bound a continuum triangle; an exit wholly inside the
     agent zone keeps its number and name with no edges."""
+    if type(mesh) is not TriMesh:  # (a building's glued mesh: its atlas would be lost)
+        raise ParameterError(f"the hybrid interface splits a room's mesh only, not a "
+                             f"{type(mesh).__name__} (a building's)")
     agents = np.asarray(agents, bool).ravel()
     m = mesh.n_triangles
     if agents.shape != (m,):
