@@ -214,6 +214,10 @@ class Simulation:
         self.v = v
         self.tri = tri
         self.n = int(present.sum())
+        #: people taken out by :meth:`withdraw` and not back (a hybrid model's continuum
+        #: holds them), and whether each id is one of them
+        self.n_withdrawn = 0
+        self._withdrawn = None
 
     def _init_records(self, N: int) -> None:
         """The clock (``t`` [s], ``steps``), the densities at the pedestrians [ped/m^2], the
@@ -805,7 +809,100 @@ class Simulation:
 
     @property
     def n_evacuated(self) -> int:
-        return self.n_initial - self.n - self.n_waiting
+        return self.n_initial - self.n - self.n_waiting - self.n_withdrawn
+
+    # ------------------------------------------------------------------ hand-over
+    def _by_id(self) -> None:
+        """Keep each person's radius, free speed and route group by id (``rad_of``,
+        ``u0_of``, ``toff_of``), as for the entrances' people, so that who leaves the rows
+        can come back with them."""
+        if not hasattr(self, "rad_of"):
+            N = self.n_initial
+            self.rad_of = np.full(N, self.params.r)
+            self.u0_of = np.full(N, self.params.U_f)
+            self.toff_of = np.zeros(N, np.int64)
+        n = self.n
+        ids = self.ids[:n]
+        self.rad_of[ids] = self.rad[:n]
+        self.u0_of[ids] = self.u0[:n]
+        self.toff_of[ids] = self.toff[:n]
+        if self._withdrawn is None:
+            self._withdrawn = np.zeros(self.n_initial, bool)
+
+    def withdraw(self, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Take the people of the rows ``mask`` ((n,) bool over the people inside, in the
+        order of :attr:`active_ids`) out of the simulation, not through an exit (a hybrid
+        model hands them to its continuum). Returns their ids, positions [m] (k, 2) and
+        velocities [m/s] (k, 2). They count neither as inside nor as evacuated until
+        :meth:`enter` brings them back; the simulation keeps their radius, free speed and
+        route by id."""
+        from . import kernels as K
+
+        mask = np.asarray(mask, bool).ravel()
+        n = self.n
+        if mask.shape != (n,):
+            raise SimulationError(f"withdraw needs one flag per person inside ({n}), got "
+                                  f"{mask.shape}")
+        self._by_id()
+        ids = self.ids[:n][mask].copy()
+        x = self.x[:n][mask].copy()
+        v = self.v[:n][mask].copy()
+        if len(ids):
+            flag = np.where(mask, 0, -1).astype(np.int64)
+            self.n = K.compact(flag, n, *self._rows())
+            self._withdrawn[ids] = True
+            self.n_withdrawn += len(ids)
+        return ids, x, v
+
+    def enter(self, ids: np.ndarray, positions: np.ndarray,
+              velocities: np.ndarray) -> np.ndarray:
+        """Bring withdrawn people (``ids``, see :meth:`withdraw`) back at ``positions`` [m]
+        (k, 2) with ``velocities`` [m/s] (k, 2), in the order given, each only where its
+        body is inside the mesh and clear of everyone else's by ENTRANCE_GAP [m]. Returns
+        (k,) bool: who entered (the others stay withdrawn; a hybrid model keeps them in
+        its interface account)."""
+        ids = np.asarray(ids, np.int64).ravel()
+        pos = np.asarray(positions, float).reshape(-1, 2)
+        vel = np.asarray(velocities, float).reshape(-1, 2)
+        if not (len(ids) == len(pos) == len(vel)):
+            raise SimulationError(f"enter: {len(ids)} ids, {len(pos)} positions and "
+                                  f"{len(vel)} velocities")
+        if len(ids) and (self._withdrawn is None or not np.all(self._withdrawn[ids])):
+            raise SimulationError("enter: only people taken out by withdraw can enter")
+        if len(np.unique(ids)) != len(ids):
+            raise SimulationError("enter: an id is given twice")
+        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(vel))):
+            raise SimulationError("enter: positions and velocities must be finite")
+        tri = self.mesh.locate(pos) if len(pos) else np.zeros(0, np.int64)
+        R = self.params.R
+        w0 = 1.0 / (math.pi * R * R)
+        reach = 2.0 * R
+        entered = np.zeros(len(ids), bool)
+        for k in range(len(ids)):
+            i = int(ids[k])
+            if tri[k] < 0:
+                continue
+            n = self.n
+            ri = self.rad_of[i]
+            d = np.hypot(self.x[:n, 0] - pos[k, 0], self.x[:n, 1] - pos[k, 1])
+            if n and float((d - self.rad[:n]).min()) - ri < ENTRANCE_GAP:
+                continue  # no room there
+            near = d[d < reach]
+            self.x[n] = pos[k]
+            self.v[n] = vel[k]
+            self.tri[n] = tri[k]
+            self.rad[n], self.u0[n], self.tpre[n] = ri, self.u0_of[i], 0.0
+            self._u_eff[n] = self.u0_of[i]
+            self.toff[n] = self.toff_of[i]
+            self.ids[n] = i
+            self.rho[n] = w0 + w0 * float(np.exp(-(near / R) ** 2).sum())
+            self.n = n + 1
+            e = self._directions(n, n + 1)[0]
+            self._e[n] = unit_rows(e[None, :])[0]
+            self._withdrawn[i] = False
+            self.n_withdrawn -= 1
+            entered[k] = True
+        return entered
 
     @property
     def finished(self) -> bool:
