@@ -149,3 +149,37 @@ def test_deposit_adds_exactly_the_agent():
     assert np.all(Q[[0, 2]] == 0)
     with pytest.raises(ParameterError, match="mass"):
         deposit(Q, areas, 0, -1.0)
+
+
+def test_a_coupled_run_keeps_every_person():
+    """HybridRun (the prototype): a crowd walks through a corridor whose middle is the
+    agent zone. At every meeting the continuum's cells, the agents, the interface accounts
+    and who left through either model's exit add up to the initial crowd to round-off;
+    people cross into the zone as agents and out of it into the continuum again, and
+    everyone leaves."""
+    from pedmesh import StartArea
+    from pedmesh.models.hybrid import HybridRun
+
+    room = Room([(0, 0), (30, 0), (30, 4), (0, 4)], exits=[Exit("out", [(30, 0), (30, 4)])],
+                start_areas=[StartArea("crowd", [(1, 0.5), (9, 0.5), (9, 3.5), (1, 3.5)],
+                                       count=60)])
+    mesh = triangulate(room, max_area=0.3)
+    zone = zone_cells(mesh, [[(12, -1), (16, -1), (16, 5), (12, 5)]])
+    run = HybridRun(mesh, zone, seed=1)
+    N = run.n_initial
+    c = run.count()
+    assert c.agents == 0 and c.cells == pytest.approx(N, rel=1e-12)  # (no start in the zone)
+    most_agents = 0
+    while not run.finished and run.t < 120.0:
+        run.step()
+        c = run.count()
+        assert abs(c.total - N) < 1e-9 * N, c
+        assert c.accounts >= -1e-9 and c.cells >= -1e-9
+        most_agents = max(most_agents, c.agents)
+    assert run.finished, run.count()
+    assert most_agents >= 5  # (people did cross into the zone as agents)
+    c = run.count()
+    # the exit lies in the continuum; what is left is less than a person per interface line
+    groups = run.groups.max() + 1
+    assert groups == 2 and c.accounts < groups and c.cells < 0.5
+    assert c.out_continuum > N - groups - 0.5

@@ -8,10 +8,13 @@ what crosses the interface.
 * :mod:`~pedmesh.models.hybrid.interface`: the continuum's sub-mesh, each interface edge an
   exit of its own, so that the finite-volume solver counts what leaves through it exactly
   (its outflow per exit), and the deposit of an agent's mass and momentum into the cell it
-  enters.
+  enters;
+* :mod:`~pedmesh.models.hybrid.coupling`: a first coupled run (a prototype) that keeps the
+  count exact.
 """
 
+from .coupling import HybridCount, HybridRun
 from .interface import ContinuumPart, deposit, split_mesh
 from .zones import zone_cells
 
-__all__ = ["ContinuumPart", "deposit", "split_mesh", "zone_cells"]
+__all__ = ["ContinuumPart", "HybridCount", "HybridRun", "deposit", "split_mesh", "zone_cells"]

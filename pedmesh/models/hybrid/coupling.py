@@ -1,0 +1,237 @@
+"""A first coupled run of agents and a continuum (issue 47, a prototype: not in the model
+registry, no presets, no output folder).
+
+:class:`HybridRun` keeps the social force model's :class:`~pedmesh.models.sfm.Simulation`
+on the whole mesh for the people in the agent zone, and ``eos`` on the rest
+(:func:`~pedmesh.models.hybrid.interface.split_mesh`). Every ``sync_dt`` [s] the two meet:
+
+1. the continuum advances to the meeting time; what it passed through each interface edge
+   is added to that edge's account (:attr:`HybridRun.accounts`, people);
+2. the agents step to the meeting time;
+3. agents who stand outside the zone are withdrawn from the agents and their mass and
+   momentum added to the continuum cell they stand in
+   (:func:`~pedmesh.models.hybrid.interface.deposit`);
+4. each edge's account gives whole people to the agents: a person held by the continuum
+   enters on the zone's side of the edge with the continuum's velocity there, where there
+   is room (:meth:`~pedmesh.models.sfm.Simulation.enter`); else they stay in the account.
+
+So every person is in one place at every meeting: a continuum cell (a fraction of a
+person per cell), an agent, an interface account, or out through an exit of either model
+(:meth:`HybridRun.count`, to round-off). The continuum's people walk the empty room's
+routes (static; the issue's one route from the combined density is open), the agents
+their own, and the agents do not see the continuum's crowd yet; the continuum's flux into
+the zone is not limited by the room the agents have (it piles up in the accounts). These
+are the open points of issue 47 that make it a prototype.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ... import parameters as P
+from ...errors import ParameterError
+from ...mesh.triangle_mesh import TriMesh
+from .interface import deposit, split_mesh
+
+__all__ = ["HybridRun", "HybridCount"]
+
+#: [ped] the continuum's cells count as empty below this (the continuum runs' empty_below)
+EMPTY_BELOW = P.get("empty_below").default
+#: [m] how far into its agent triangle a person entering from an interface edge starts,
+#: from the edge's midpoint towards the triangle's centroid (at most the whole way)
+ENTRY_DEPTH = 0.3
+
+
+@dataclass(frozen=True)
+class HybridCount:
+    """Where the people of a hybrid run are [ped]: in the continuum's cells, as agents, in
+    the interface accounts, out through the continuum's exits and out through the agents'
+    exits; ``total`` their sum (the initial crowd, to round-off)."""
+
+    cells: float
+    agents: int
+    accounts: float
+    out_continuum: float
+    out_agents: int
+
+    @property
+    def total(self) -> float:
+        return self.cells + self.agents + self.accounts + self.out_continuum + self.out_agents
+
+
+class HybridRun:
+    """Agents in ``zone`` ((m,) bool over the triangles of ``mesh``, a room's mesh with its
+    start areas), ``eos`` elsewhere; meeting every ``sync_dt`` [s] (see the module
+    docstring). ``sfm_params``, ``seed``: the social force model's
+    (:class:`~pedmesh.models.sfm.Simulation`); ``continuum``: the continuum model's
+    parameters (:func:`~pedmesh.models.continuum.macro_model` of ``eos``)."""
+
+    def __init__(self, mesh: TriMesh, zone: np.ndarray, *, sync_dt: float = 0.1,
+                 sfm_params=None, seed: int | None = None,
+                 continuum: dict | None = None) -> None:
+        from ...eikonal import EikonalSolver
+        from ...eikonal.direction import DirectionField
+        from ..continuum import macro_model
+        from ..continuum.solver import FVController, FVOptions, FVSolver, FVState
+        from ..sfm import Simulation
+
+        if not (np.isfinite(sync_dt) and sync_dt > 0):
+            raise ParameterError(f"sync_dt must be a time > 0 [s], got {sync_dt!r}")
+        self.mesh = mesh
+        self.zone = np.asarray(zone, bool).ravel()
+        self.sync_dt = float(sync_dt)
+        self.part = split_mesh(mesh, self.zone)
+        sub = self.part.mesh
+        self._sub_of = np.full(mesh.n_triangles, -1, np.int64)
+        self._sub_of[self.part.cells] = np.arange(len(self.part.cells))
+        # the continuum's directions: the empty room's routes on the whole mesh
+        self._routes = DirectionField(mesh, EikonalSolver(mesh).solve(1.0))
+        self.sim = Simulation(mesh, params=sfm_params, seed=seed)
+        self.n_initial = self.sim.n_initial
+        self.solver = FVSolver(sub, macro_model("eos", **(continuum or {})), FVOptions(),
+                               direction=self._direction)
+        self.state = FVState(np.zeros((sub.n_triangles, self.solver.model.n_vars)))
+        self.controller = FVController(self.solver, self.state)
+        self.accounts = np.zeros(self.part.n_interface)
+        #: (k,) the group of each interface edge: the edges of one connected line along
+        #: the zone's edge pool their accounts (a person enters when the group holds one,
+        #: where its edges hold the most), else fractions below one person per edge stay
+        self.groups = self._groups()
+        self._through = np.zeros(self.part.n_interface)  # interface outflow already booked
+        self._held: list[int] = []  # ids the continuum holds (they enter first in, first out)
+        self._entry_points = self._entries()
+        self._to_continuum()
+
+    # ------------------------------------------------------------------ set-up
+    def _direction(self, x, y) -> np.ndarray:
+        """The desired direction (..., 2) of the empty room's routes at points (x, y) [m]."""
+        x = np.asarray(x, float)
+        pts = np.stack([x.ravel(), np.asarray(y, float).ravel()], axis=1)
+        tri = self.mesh.locate(pts)
+        e = np.zeros_like(pts)
+        ok = tri >= 0
+        e[ok] = self._routes.at(pts[ok], tri[ok])
+        return e.reshape(x.shape + (2,))
+
+    def _groups(self) -> np.ndarray:
+        """(k,) the connected line (0, 1, ...) each interface edge belongs to (edges that
+        share a vertex are connected)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        k = self.part.n_interface
+        if k == 0:
+            return np.zeros(0, np.int64)
+        ends = self.mesh.edges[self.part.interface]  # (k, 2) parent vertices
+        rows = np.repeat(np.arange(k), 2)
+        inc = coo_matrix((np.ones(2 * k), (rows, ends.ravel())),
+                         shape=(k, self.mesh.n_points)).tocsr()
+        _, labels = connected_components(inc @ inc.T, directed=False)
+        return labels.astype(np.int64)
+
+    def _entries(self) -> np.ndarray:
+        """(k, 2) [m] where a person given by interface edge j enters: ENTRY_DEPTH from the
+        edge's midpoint towards the centroid of its agent triangle."""
+        mid = self.mesh.edge_midpoints[self.part.interface]
+        cen = self.mesh.centroids[self.part.interface_agent_cell]
+        d = cen - mid
+        dist = np.hypot(d[:, 0], d[:, 1])
+        step = np.minimum(ENTRY_DEPTH, dist) / np.maximum(dist, 1e-12)
+        return mid + d * step[:, None]
+
+    # ------------------------------------------------------------------ hand-over
+    def _to_continuum(self) -> None:
+        """Agents outside the zone to the continuum cell they stand in."""
+        sim = self.sim
+        n = sim.n
+        if n == 0:
+            return
+        tri = sim.tri[:n]
+        if sim.mesh is not self.mesh:  # (never: the agents run on the same mesh)
+            raise RuntimeError("the agents' mesh is not the hybrid run's")
+        out = ~self.zone[tri]
+        if not out.any():
+            return
+        cells = self._sub_of[tri[out]]
+        ids, _, v = sim.withdraw(out)
+        Q = self.state.Q
+        for i, c, vel in zip(ids, cells, v):
+            deposit(Q, self.solver.areas, int(c), 1.0, (float(vel[0]), float(vel[1]))
+                    if Q.shape[1] >= 3 else (0.0, 0.0))
+            self._held.append(int(i))
+        self.controller.mass0 += len(ids)
+
+    def _to_agents(self) -> int:
+        """Whole people of the interface accounts to the agents, where there is room;
+        returns how many entered."""
+        through = self.part.interface_outflow(self.state.outflow)
+        self.accounts += through - self._through
+        self._through = through.copy()
+        entered = 0
+        Q = self.state.Q
+        for g in range(int(self.groups.max(initial=-1)) + 1):
+            edges = np.flatnonzero(self.groups == g)
+            while self._held and self.accounts[edges].sum() >= 1.0:
+                j = int(edges[np.argmax(self.accounts[edges])])  # where most crossed
+                c = self.part.interface_cell[j]
+                rho = max(float(Q[c, 0]), 1e-12)
+                vel = Q[c, 1:3] / rho if Q.shape[1] >= 3 else np.zeros(2)
+                ok = self.sim.enter(np.array([self._held[0]]), self._entry_points[j][None, :],
+                                    vel[None, :])
+                if not ok[0]:
+                    break  # no room there now: they wait in the account
+                self._held.pop(0)
+                self._take_one(edges)
+                entered += 1
+        return entered
+
+    def _take_one(self, edges: np.ndarray) -> None:
+        """One person less in the accounts of ``edges`` (which hold at least one together):
+        from the fullest edge first, so that no account goes below zero."""
+        need = 1.0
+        for j in edges[np.argsort(-self.accounts[edges], kind="stable")]:
+            take = min(need, self.accounts[j])
+            self.accounts[j] -= take
+            need -= take
+            if need <= 0.0:
+                break
+
+    # ------------------------------------------------------------------ running
+    def step(self) -> None:
+        """One meeting interval: the continuum, then the agents, then the hand-overs."""
+        t1 = self.state.t + self.sync_dt
+        self.controller.advance(t1)
+        sim = self.sim
+        while sim.t < t1 - 1e-9 and (sim.n or sim.n_waiting):
+            sim.step()
+        if sim.t < t1 - 1e-9:  # (no agents: the agents' clock jumps to the meeting)
+            sim.steps = int(round(t1 / sim.numerics.dt))
+            sim.t = sim.steps * sim.numerics.dt
+        self._to_continuum()
+        self._to_agents()
+
+    @property
+    def t(self) -> float:
+        return self.state.t
+
+    def count(self) -> HybridCount:
+        """Where everyone is now (:class:`HybridCount`)."""
+        out = self.state.outflow
+        return HybridCount(cells=self.solver.mass(self.state.Q), agents=int(self.sim.n),
+                           accounts=float(self.accounts.sum()),
+                           out_continuum=float(self.part.exit_outflow(out).sum()),
+                           out_agents=int(self.sim.n_evacuated))
+
+    @property
+    def finished(self) -> bool:
+        """Nothing is left to happen: no agents, the continuum's cells empty as a continuum
+        run counts a room empty (fewer than ``empty_below``, 0.5 people: its last film does
+        not move) and less than one person in each interface group's account (a fraction
+        that will never make a person; :meth:`count` keeps it)."""
+        c = self.count()
+        if c.agents or c.cells >= EMPTY_BELOW:
+            return False
+        sums = np.bincount(self.groups, weights=self.accounts) if len(self.groups) else []
+        return bool(np.all(np.asarray(sums) < 1.0))
