@@ -11,9 +11,12 @@ on the whole mesh for the people in the agent zone, and ``eos`` on the rest
 3. agents who stand outside the zone are withdrawn from the agents and their mass and
    momentum added to the continuum cell they stand in
    (:func:`~pedmesh.models.hybrid.interface.deposit`);
-4. each edge's account gives whole people to the agents: a person held by the continuum
-   enters on the zone's side of the edge with the continuum's velocity there, where there
-   is room (:meth:`~pedmesh.models.sfm.Simulation.enter`); else they stay in the account.
+4. when the continuum's cells count as empty, its last film goes to an interface account;
+5. each connected line of interface edges gives whole people to the agents when its
+   accounts hold one: a person held by the continuum enters on the zone's side of one of
+   its edges (where most crossed first, the first with room) with the continuum's
+   velocity there (:meth:`~pedmesh.models.sfm.Simulation.enter`); where there is no room
+   they stay in the account.
 
 So every person is in one place at every meeting: a continuum cell (a fraction of a
 person per cell), an agent, an interface account, or out through an exit of either model
@@ -26,6 +29,7 @@ are the open points of issue 47 that make it a prototype.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +43,8 @@ __all__ = ["HybridRun", "HybridCount"]
 
 #: [ped] the continuum's cells count as empty below this (the continuum runs' empty_below)
 EMPTY_BELOW = P.get("empty_below").default
+#: [ped] an account this close below a whole person gives one (round-off of the sums)
+WHOLE_TOL = 1e-9
 #: [m] how far into its agent triangle a person entering from an interface edge starts,
 #: from the edge's midpoint towards the triangle's centroid (at most the whole way)
 ENTRY_DEPTH = 0.3
@@ -64,18 +70,22 @@ class HybridCount:
 class HybridRun:
     """Agents in ``zone`` ((m,) bool over the triangles of ``mesh``, a room's mesh with its
     start areas), ``eos`` elsewhere; meeting every ``sync_dt`` [s] (see the module
-    docstring). ``sfm_params``, ``seed``: the social force model's
-    (:class:`~pedmesh.models.sfm.Simulation`); ``continuum``: the continuum model's
-    parameters (:func:`~pedmesh.models.continuum.macro_model` of ``eos``)."""
+    docstring). ``preset``: both models' parameters from that preset (:mod:`pedmesh.presets`;
+    None: the models' defaults, the paper's; the agents walk on the run's mesh, without the
+    route mesh a preset's ``route_resolution`` asks for); ``seed``: the start lattice's
+    jitter (:func:`~pedmesh.models.sfm.placement.seeded_positions`)."""
 
     def __init__(self, mesh: TriMesh, zone: np.ndarray, *, sync_dt: float = 0.1,
-                 sfm_params=None, seed: int | None = None,
-                 continuum: dict | None = None) -> None:
+                 preset: str | None = None, seed: int | None = None) -> None:
         from ...eikonal import EikonalSolver
         from ...eikonal.direction import DirectionField
-        from ..continuum import macro_model
+        from ...presets import preset_overrides
+        from ... import parameters as PP
+        from ..continuum.adapter import ContinuumEntry
         from ..continuum.solver import FVController, FVOptions, FVSolver, FVState
+        from ..registry import get_model
         from ..sfm import Simulation
+        from ..sfm.params import SFMNumerics, SocialForceParams, with_overrides
 
         if not (np.isfinite(sync_dt) and sync_dt > 0):
             raise ParameterError(f"sync_dt must be a time > 0 [s], got {sync_dt!r}")
@@ -88,10 +98,26 @@ class HybridRun:
         self._sub_of[self.part.cells] = np.arange(len(self.part.cells))
         # the continuum's directions: the empty room's routes on the whole mesh
         self._routes = DirectionField(mesh, EikonalSolver(mesh).solve(1.0))
-        self.sim = Simulation(mesh, params=sfm_params, seed=seed)
+        # each model with the preset's values (default: the models' own, the paper's);
+        # the agents walk on the run's mesh (no route mesh of their own yet)
+        sfm = preset_overrides(preset, get_model("sfm").parameter_names) if preset else {}
+        params, numerics = with_overrides(sfm, SocialForceParams(), SFMNumerics())
+        numerics = dataclasses.replace(numerics, route_resolution=None)
+        positions = None
+        if seed is not None:
+            from ..sfm.placement import seeded_positions
+
+            positions = seeded_positions(mesh.room, int(seed), radius=params.r)
+        self.sim = Simulation(mesh, positions, params=params, numerics=numerics)
         self.n_initial = self.sim.n_initial
-        self.solver = FVSolver(sub, macro_model("eos", **(continuum or {})), FVOptions(),
-                               direction=self._direction)
+        entry = get_model("eos")
+        assert isinstance(entry, ContinuumEntry)
+        own = {p.name for p in entry.model_parameters}
+        cont = preset_overrides(preset, entry.parameter_names, continuum=True) if preset \
+            else {}
+        model = entry.physics(**PP.check_values({k: v for k, v in cont.items() if k in own},
+                                                entry.model_parameters))
+        self.solver = FVSolver(sub, model, FVOptions(), direction=self._direction)
         self.state = FVState(np.zeros((sub.n_triangles, self.solver.model.n_vars)))
         self.controller = FVController(self.solver, self.state)
         self.accounts = np.zeros(self.part.n_interface)
@@ -173,15 +199,17 @@ class HybridRun:
         Q = self.state.Q
         for g in range(int(self.groups.max(initial=-1)) + 1):
             edges = np.flatnonzero(self.groups == g)
-            while self._held and self.accounts[edges].sum() >= 1.0:
-                j = int(edges[np.argmax(self.accounts[edges])])  # where most crossed
-                c = self.part.interface_cell[j]
-                rho = max(float(Q[c, 0]), 1e-12)
-                vel = Q[c, 1:3] / rho if Q.shape[1] >= 3 else np.zeros(2)
-                ok = self.sim.enter(np.array([self._held[0]]), self._entry_points[j][None, :],
-                                    vel[None, :])
-                if not ok[0]:
-                    break  # no room there now: they wait in the account
+            while self._held and self.accounts[edges].sum() >= 1.0 - WHOLE_TOL:
+                # the line's edges where most crossed first, the first with room
+                for j in edges[np.argsort(-self.accounts[edges], kind="stable")]:
+                    c = self.part.interface_cell[j]
+                    rho = max(float(Q[c, 0]), 1e-12)
+                    vel = Q[c, 1:3] / rho if Q.shape[1] >= 3 else np.zeros(2)
+                    if self.sim.enter(np.array([self._held[0]]),
+                                      self._entry_points[j][None, :], vel[None, :])[0]:
+                        break
+                else:
+                    break  # no room anywhere on the line now: they wait in the account
                 self._held.pop(0)
                 self._take_one(edges)
                 entered += 1
@@ -197,6 +225,7 @@ class HybridRun:
             need -= take
             if need <= 0.0:
                 break
+        # (what is missing of a whole person, at most WHOLE_TOL, is round-off)
 
     # ------------------------------------------------------------------ running
     def step(self) -> None:
@@ -210,7 +239,27 @@ class HybridRun:
             sim.steps = int(round(t1 / sim.numerics.dt))
             sim.t = sim.steps * sim.numerics.dt
         self._to_continuum()
+        self._sweep()
         self._to_agents()
+
+    def _sweep(self) -> None:
+        """When the continuum's cells count as empty (fewer than EMPTY_BELOW people: their
+        last film does not move) but its people are not all out, the film's mass goes to
+        the account of the interface line holding the most, exactly (cells emptied, the
+        account raised by what they held), so that the last people still become agents."""
+        if not len(self.groups) or not self._held:
+            return
+        cells = self.solver.mass(self.state.Q)
+        if not 0.0 < cells < EMPTY_BELOW:
+            return
+        sums = np.bincount(self.groups, weights=self.accounts)
+        if sums.max() <= 0.0:
+            return  # (nothing crossed anywhere yet: the film waits)
+        edges = np.flatnonzero(self.groups == int(np.argmax(sums)))
+        j = int(edges[np.argmax(self.accounts[edges])])
+        self.state.Q[:] = 0.0
+        self.accounts[j] += cells
+        self.controller.mass0 -= cells
 
     @property
     def t(self) -> float:
