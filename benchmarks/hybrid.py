@@ -4,8 +4,9 @@ pure models on the corridor bottleneck.
 ``geometries/corridor_bottleneck.json`` with the agents within ``--near`` (4) m of the
 exit and ``eos`` elsewhere, against the social force model and ``eos`` alone, all under
 ``--preset`` (validated; the prototype's agents walk on the run's mesh, without the route
-mesh of the preset's ``route_resolution``) and the start lattice of seed ``--seed``: T50 / T90 / T100 [s] from the evacuation curve (people out
-through either model's exits, sampled at every meeting, 0.1 s), the most agents at once,
+mesh of the preset's ``route_resolution``) and the start lattice of seed ``--seed``:
+T50 / T90 / T100 [s] from the evacuation curve (people out through either model's exits,
+sampled at every meeting, 0.1 s), the most agents at once,
 where the people were at the end, the largest error of the count over the run, and the
 wall time. The issue's goal is T50/T90/T100 within 2 % of the social force model's (or two
 standard deviations of a 10-seed ensemble); this prints where the prototype stands.

@@ -176,6 +176,11 @@ def test_a_coupled_run_keeps_every_person():
         assert abs(c.total - N) < 1e-9 * N, c
         assert c.accounts >= -1e-9 and c.cells >= -1e-9
         most_agents = max(most_agents, c.agents)
+        # one crowd for both routes: the agents' route reads the continuum's density
+        assert run.sim.extra_route_density is not None
+        if c.cells > 1.0:
+            assert run.sim.extra_route_density.max() > 0.0
+        assert run._routes_seen == run.sim.timers.routes
     assert run.finished, run.count()
     assert most_agents >= 5  # (people did cross into the zone as agents)
     c = run.count()

@@ -303,6 +303,12 @@ class FVSolver:
         self._sample_directions()
 
     # ------------------------------------------------------------------ routes
+    def set_direction(self, direction: Callable) -> None:
+        """Steer by the fixed field ``direction(x, y) -> (..., 2)`` from now on (the
+        constructor's ``direction``; e.g. a hybrid model's route, solved elsewhere),
+        sampled anew at every point the solver reads directions at."""
+        self._set_directions(direction)
+
     def update_route(self, Q: np.ndarray, t: float | None = None) -> None:
         """Re-solve the route potential with cost 1/U_e(rho) and sample the direction.
         With the time ``t`` [s], not before ``route_interval`` has passed since the last

@@ -1,5 +1,5 @@
-"""A first coupled run of agents and a continuum (issue 47, a prototype: not in the model
-registry, no presets, no output folder).
+"""A first coupled run of agents and a continuum (issue 47, a prototype from Python: not
+in the model registry, no output folder).
 
 :class:`HybridRun` keeps the social force model's :class:`~pedmesh.models.sfm.Simulation`
 on the whole mesh for the people in the agent zone, and ``eos`` on the rest
@@ -20,11 +20,20 @@ on the whole mesh for the people in the agent zone, and ``eos`` on the rest
 
 So every person is in one place at every meeting: a continuum cell (a fraction of a
 person per cell), an agent, an interface account, or out through an exit of either model
-(:meth:`HybridRun.count`, to round-off). The continuum's people walk the empty room's
-routes (static; the issue's one route from the combined density is open), the agents
-their own, and the agents do not see the continuum's crowd yet; the continuum's flux into
-the zone is not limited by the room the agents have (it piles up in the accounts). These
-are the open points of issue 47 that make it a prototype.
+(:meth:`HybridRun.count`, to round-off).
+
+One crowd for the routes of both: the agents' route cost reads the continuum's crowd as
+well (its cell densities averaged to the mesh's vertices), and at each of the agents'
+route solves the continuum's potential is solved from the same density and cost law
+(before the first: the empty room's). It leaves out the agents' wall clearance
+(``route_clearance``: a route for a body's centre; a continuum fills the passage's width):
+with it the continuum, squeezed off the walls, reached the corridor bottleneck's T50 / T90
+/ T100 3-4 % late (``benchmarks/hybrid.py``; without it within 1 %).
+
+Open (issue 47), which makes this a prototype: the agents do not see the continuum's
+crowd in their desired speed and forces; the continuum's flux into the zone is not limited
+by the room the agents have (what does not fit waits in the accounts); no density trigger;
+no output folder.
 """
 
 from __future__ import annotations
@@ -97,7 +106,8 @@ class HybridRun:
         self._sub_of = np.full(mesh.n_triangles, -1, np.int64)
         self._sub_of[self.part.cells] = np.arange(len(self.part.cells))
         # the continuum's directions: the empty room's routes on the whole mesh
-        self._routes = DirectionField(mesh, EikonalSolver(mesh).solve(1.0))
+        self._eikonal = EikonalSolver(mesh)
+        self._routes = DirectionField(mesh, self._eikonal.solve(1.0))
         # each model with the preset's values (default: the models' own, the paper's);
         # the agents walk on the run's mesh (no route mesh of their own yet)
         sfm = preset_overrides(preset, get_model("sfm").parameter_names) if preset else {}
@@ -128,7 +138,9 @@ class HybridRun:
         self._through = np.zeros(self.part.n_interface)  # interface outflow already booked
         self._held: list[int] = []  # ids the continuum holds (they enter first in, first out)
         self._entry_points = self._entries()
+        self._routes_seen = -1
         self._to_continuum()
+        self._share_routes()
 
     # ------------------------------------------------------------------ set-up
     def _direction(self, x, y) -> np.ndarray:
@@ -202,9 +214,7 @@ class HybridRun:
             while self._held and self.accounts[edges].sum() >= 1.0 - WHOLE_TOL:
                 # the line's edges where most crossed first, the first with room
                 for j in edges[np.argsort(-self.accounts[edges], kind="stable")]:
-                    c = self.part.interface_cell[j]
-                    rho = max(float(Q[c, 0]), 1e-12)
-                    vel = Q[c, 1:3] / rho if Q.shape[1] >= 3 else np.zeros(2)
+                    vel = self._velocity(Q, self.part.interface_cell[j])
                     if self.sim.enter(np.array([self._held[0]]),
                                       self._entry_points[j][None, :], vel[None, :])[0]:
                         break
@@ -214,6 +224,14 @@ class HybridRun:
                 self._take_one(edges)
                 entered += 1
         return entered
+
+    def _velocity(self, Q: np.ndarray, c: int) -> np.ndarray:
+        """The continuum's velocity [m/s] (2,) in cell ``c``, as the model reads it (its
+        vacuum density and largest speed: a film's momentum over its density is not a
+        walking speed)."""
+        if Q.shape[1] < 3:
+            return np.zeros(2)
+        return np.asarray(self.solver.model.velocity(Q[c][None, :]), float)[0]
 
     def _take_one(self, edges: np.ndarray) -> None:
         """One person less in the accounts of ``edges`` (which hold at least one together):
@@ -241,6 +259,26 @@ class HybridRun:
         self._to_continuum()
         self._sweep()
         self._to_agents()
+        self._share_routes()
+
+    def _share_routes(self) -> None:
+        """One crowd for both routes: the agents' route cost reads the continuum's crowd too
+        (its cell densities averaged to the mesh's vertices, :attr:`Simulation.
+        extra_route_density <pedmesh.models.sfm.Simulation.extra_route_density>`), and
+        after each of the agents' route solves the continuum's potential is solved from
+        the same density (see the module docstring)."""
+        from ...eikonal.direction import DirectionField, _vertex_averaging
+
+        rho = self.part.to_parent(np.maximum(self.state.Q[:, 0], 0.0))
+        self.sim.extra_route_density = _vertex_averaging(self.mesh) @ rho
+        solves = self.sim.timers.routes
+        if solves != self._routes_seen and solves > 0:
+            # the same crowd and cost law as the agents' solve, without their walls'
+            # clearance (a route for a body's centre; the continuum fills the width)
+            cost = self.sim.params.speed.route_cost(self.sim.route_density())
+            self._routes = DirectionField(self.mesh, self._eikonal.solve(cost))
+            self.solver.set_direction(self._direction)
+            self._routes_seen = solves
 
     def _sweep(self) -> None:
         """When the continuum's cells count as empty (fewer than EMPTY_BELOW people: their

@@ -218,6 +218,9 @@ class Simulation:
         #: holds them), and whether each id is one of them
         self.n_withdrawn = 0
         self._withdrawn = None
+        #: (n_points,) [ped/m^2] a density at the mesh's vertices the route cost adds to
+        #: the crowd's (a hybrid model's continuum), None: none
+        self.extra_route_density = None
 
     def _init_records(self, N: int) -> None:
         """The clock (``t`` [s], ``steps``), the densities at the pedestrians [ped/m^2], the
@@ -618,10 +621,13 @@ class Simulation:
         """The crowd density [ped/m^2] the route cost reads, at the mesh's vertices: the
         Gaussian kernel density of width ``route_kernel`` (on a grid,
         :class:`~pedmesh.analysis.fields.GridKernelDensity`), or without one the kernel
-        density of width R (eq3, eq4) as the paper has it."""
-        if self._route_grid is None:
-            return self.vertex_density()
-        return self._route_grid(self.x[: self.n])
+        density of width R (eq3, eq4) as the paper has it; plus
+        :attr:`extra_route_density` where set (a crowd the simulation does not hold)."""
+        rho = self.vertex_density() if self._route_grid is None \
+            else self._route_grid(self.x[: self.n])
+        if self.extra_route_density is not None:  # (a hybrid model's continuum crowd)
+            rho = rho + self.extra_route_density
+        return rho
 
     def _route(self) -> None:
         """Re-solve the route potential with cost 1/U_e(rho) at the vertices, rho the
