@@ -82,14 +82,14 @@ class HybridRun:
     docstring). ``preset``: both models' parameters from that preset (:mod:`pedmesh.presets`;
     None: the models' defaults, the paper's; the agents walk on the run's mesh, without the
     route mesh a preset's ``route_resolution`` asks for); ``seed``: the start lattice's
-    jitter (:func:`~pedmesh.models.sfm.placement.seeded_positions`)."""
+    jitter (:func:`~pedmesh.models.sfm.placement.seeded_positions`). Everyone is alike (the
+    start areas' premovement, speeds, radii and exits are not read yet)."""
 
     def __init__(self, mesh: TriMesh, zone: np.ndarray, *, sync_dt: float = 0.1,
                  preset: str | None = None, seed: int | None = None) -> None:
         from ...eikonal import EikonalSolver
         from ...eikonal.direction import DirectionField
         from ...presets import preset_overrides
-        from ... import parameters as PP
         from ..continuum.adapter import ContinuumEntry
         from ..continuum.solver import FVController, FVOptions, FVSolver, FVState
         from ..registry import get_model
@@ -125,7 +125,7 @@ class HybridRun:
         own = {p.name for p in entry.model_parameters}
         cont = preset_overrides(preset, entry.parameter_names, continuum=True) if preset \
             else {}
-        model = entry.physics(**PP.check_values({k: v for k, v in cont.items() if k in own},
+        model = entry.physics(**P.check_values({k: v for k, v in cont.items() if k in own},
                                                 entry.model_parameters))
         self.solver = FVSolver(sub, model, FVOptions(), direction=self._direction)
         self.state = FVState(np.zeros((sub.n_triangles, self.solver.model.n_vars)))
