@@ -16,8 +16,12 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
 
 ``--law cone1`` (issue 44, under way): ``--law refit`` with the density cone of exponent 1
     (``density_cone=1``): with the fitted table it put every long opening in the band but
-    the 0.4 m door below it and uo-095 at +14 % (docs/validation/door_physics.md);
-    ``fit_evaluations_cone1.csv`` resumes.
+    the 0.4 m door below it and uo-095 at +14 % (docs/validation/door_physics.md). Its
+    first 32 evaluations (``fit_evaluations_cone1.csv``, which resumes) reached F = 4.77
+    at #26 (the shipped point: 5.87): both bottleneck series inside the band at every
+    width and the density in front of every 0.5-1.2 m opening at least 6.26 /m^2, with
+    uo-100 (replayed) at +11 % and uo-095 at +10 % still out; not yet checked in six
+    realisations, so not shipped.
 
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
