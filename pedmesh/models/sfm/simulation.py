@@ -864,9 +864,10 @@ class Simulation:
               velocities: np.ndarray) -> np.ndarray:
         """Bring withdrawn people (``ids``, see :meth:`withdraw`) back at ``positions`` [m]
         (k, 2) with ``velocities`` [m/s] (k, 2), in the order given, each only where its
-        body is inside the mesh and clear of everyone else's by ENTRANCE_GAP [m]. Returns
-        (k,) bool: who entered (the others stay withdrawn; a hybrid model keeps them in
-        its interface account)."""
+        centre is inside the mesh and its body clear of everyone else's by ENTRANCE_GAP
+        [m] (walls are not checked: their forces push a body off them). Returns (k,) bool:
+        who entered (the others stay withdrawn; a hybrid model keeps them in its interface
+        account)."""
         ids = np.asarray(ids, np.int64).ravel()
         pos = np.asarray(positions, float).reshape(-1, 2)
         vel = np.asarray(velocities, float).reshape(-1, 2)
@@ -912,7 +913,8 @@ class Simulation:
 
     @property
     def finished(self) -> bool:
-        """Everyone has left (nobody inside, nobody still to arrive)."""
+        """Everyone has left (nobody inside, nobody still to arrive; people taken out by
+        :meth:`withdraw` are not the simulation's to wait for)."""
         return self.n == 0 and self.n_waiting == 0
 
     def desired_directions(self) -> np.ndarray:
