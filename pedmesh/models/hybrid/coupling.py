@@ -187,8 +187,6 @@ class HybridRun:
         if n == 0:
             return
         tri = sim.tri[:n]
-        if sim.mesh is not self.mesh:  # (never: the agents run on the same mesh)
-            raise RuntimeError("the agents' mesh is not the hybrid run's")
         out = ~self.zone[tri]
         if not out.any():
             return
@@ -196,8 +194,7 @@ class HybridRun:
         ids, _, v = sim.withdraw(out)
         Q = self.state.Q
         for i, c, vel in zip(ids, cells, v):
-            deposit(Q, self.solver.areas, int(c), 1.0, (float(vel[0]), float(vel[1]))
-                    if Q.shape[1] >= 3 else (0.0, 0.0))
+            deposit(Q, self.solver.areas, int(c), 1.0, vel)
             self._held.append(int(i))
         self.controller.mass0 += len(ids)
 
@@ -251,11 +248,8 @@ class HybridRun:
         t1 = self.state.t + self.sync_dt
         self.controller.advance(t1)
         sim = self.sim
-        while sim.t < t1 - 1e-9 and (sim.n or sim.n_waiting):
+        while sim.t < t1 - 1e-9 and (sim.n or sim.n_waiting or sim.n_withdrawn):
             sim.step()
-        if sim.t < t1 - 1e-9:  # (no agents: the agents' clock jumps to the meeting)
-            sim.steps = int(round(t1 / sim.numerics.dt))
-            sim.t = sim.steps * sim.numerics.dt
         self._to_continuum()
         self._sweep()
         self._to_agents()
@@ -275,7 +269,7 @@ class HybridRun:
         if solves != self._routes_seen and solves > 0:
             # the same crowd and cost law as the agents' solve, without their walls'
             # clearance (a route for a body's centre; the continuum fills the width)
-            cost = self.sim.params.speed.route_cost(self.sim.route_density())
+            cost = self.sim.params.speed.route_cost(self.sim.route_rho)
             self._routes = DirectionField(self.mesh, self._eikonal.solve(cost))
             self.solver.set_direction(self._direction)
             self._routes_seen = solves
@@ -290,7 +284,7 @@ class HybridRun:
         cells = self.solver.mass(self.state.Q)
         if not 0.0 < cells < EMPTY_BELOW:
             return
-        sums = np.bincount(self.groups, weights=self.accounts)
+        sums = self._group_sums()
         if sums.max() <= 0.0:
             return  # (nothing crossed anywhere yet: the film waits)
         edges = np.flatnonzero(self.groups == int(np.argmax(sums)))
@@ -320,5 +314,8 @@ class HybridRun:
         c = self.count()
         if c.agents or c.cells >= EMPTY_BELOW:
             return False
-        sums = np.bincount(self.groups, weights=self.accounts) if len(self.groups) else []
-        return bool(np.all(np.asarray(sums) < 1.0))
+        return bool(np.all(self._group_sums() < 1.0))
+
+    def _group_sums(self) -> np.ndarray:
+        """The people in each interface line's accounts (one value per group)."""
+        return np.bincount(self.groups, weights=self.accounts)

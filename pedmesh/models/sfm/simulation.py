@@ -637,6 +637,8 @@ class Simulation:
         t0 = time.perf_counter()
         if self.reroute or self.steps == 0:
             rho_v = self.route_density()
+            #: (n_points,) [ped/m^2] the density the last route solve read
+            self.route_rho = rho_v
             cost = self.params.speed.route_cost(rho_v)
             if self._route_wall is not None:
                 cost = cost * self._route_wall
@@ -728,7 +730,8 @@ class Simulation:
         if self.n_waiting:
             self._admit()
         if self.n == 0:
-            if self.n_waiting:  # nobody inside yet, people still to arrive: the clock moves
+            if self.n_waiting or self.n_withdrawn:  # nobody inside, people still to arrive
+                # or to come back (withdraw): the clock moves
                 if self.n_ghosts:  # (and those beyond the exits walk on)
                     self._add_ghosts(None, 0)
                 self.steps += 1
