@@ -23,6 +23,8 @@ one change at a time; the last probe is the shipped preset::
 
     python benchmarks/door_physics.py [--probes NAME,...] [--json FILE] [--md FILE]
 
+The probes not named keep their rows from the JSON file.
+
 Every probe is one process per case (``NUMBA_NUM_THREADS=1``); nothing here is fitted.
 """
 
@@ -229,6 +231,13 @@ def main(argv=None) -> int:
     for r in rows:
         print(r["probe"], {k: v for k, v in r.items() if k not in ("what", "overrides")},
               flush=True)
+    # the probes not run now keep their rows from the file (each probe's parameters are
+    # written out above, so only the shipped preset's row moves with the preset)
+    new = {r["probe"]: r for r in rows}
+    if args.json.is_file():
+        old = {r["probe"]: r for r in json.loads(args.json.read_text())["results"]["rows"]}
+        new = {**old, **new}
+    rows = [new[n] for n in PROBES if n in new]
     write_json(args.json, {"rows": rows})
     args.md.parent.mkdir(parents=True, exist_ok=True)
     args.md.write_text(markdown(rows))
