@@ -197,7 +197,6 @@ def test_fused_first_order_fluxes_equal_the_gathered_ones(name):
     Q = _rough_state(model, mesh)
     s.update_route(Q)
     s.residual(Q, 0.0, 1e-3)  # allocates the work arrays
-    s.xmodel.all_edges_flux = None  # (the one pass over every edge: tested below)
     assert s._one_point_low_order(True) == (name != "rdue") and model.cell_flux is not None
     F1, a1 = np.empty_like(s._FL), np.empty_like(s._alpha)
     s._low_order(Q, 0.0, F1, a1)
@@ -224,7 +223,6 @@ def test_one_pass_fluxes_and_sources_equal_the_generic_path(name):
     Q = _rough_state(model, mesh)
     s.update_route(Q)
     assert model.edge_flux is not None and (model.source_mean is not None) == (name != "rdue")
-    s.xmodel.all_edges_flux = None  # (the one pass over every edge: tested below)
     d1, o1 = s.residual(Q, 0.0, 1e-4)
     model.edge_flux = model.source_mean = None
     d2, o2 = s.residual(Q, 0.0, 1e-4)
@@ -252,7 +250,6 @@ def test_one_pass_boundary_fluxes_equal_the_generic_path(name, implicit, exit):
     s.residual(Q, 0.0, 1e-4)  # allocates the work arrays
     Q = Q.copy()
     Q[s.e2t[s.exits, 0], 1] = np.abs(Q[s.e2t[s.exits, 0], 1])  # crowds leaving too
-    s.xmodel.all_edges_flux = None  # (the one pass over every edge: tested below)
     got = []
     for hook in (s.xmodel.boundary_flux, None):
         s.xmodel.boundary_flux = hook
@@ -267,48 +264,6 @@ def test_one_pass_boundary_fluxes_equal_the_generic_path(name, implicit, exit):
     for x, y in zip(*got):
         assert np.all(np.isfinite(x))
         np.testing.assert_allclose(x, y, rtol=0, atol=1e-14 * np.abs(y).max())
-    b = np.concatenate([s.walls, s.exits])
-    assert np.abs(got[0][0][s.exits, 0]).max() > 0 and np.abs(got[0][2][b]).max() > 0
-
-
-@pytest.mark.parametrize("name,implicit,exit", [
-    ("eos", False, None), ("eos", True, None), ("pw", False, "godunov"),
-    ("mac2-local", True, "godunov"), ("pw", False, "vacuum")])
-def test_every_edge_in_one_pass_equals_the_hooks_by_kind(name, implicit, exit):
-    """The barotropic models compute every edge's flux in one parallel pass
-    (``all_edges_flux``: interior, walls and Godunov exits; first order with the wave
-    speeds, and high order); it must give the per-kind hooks' fluxes and wave speeds to
-    round-off (the compiler may contract products differently), with some edges not live
-    (0 there), and step aside where the exit is not Godunov."""
-    mesh = _small_mesh()
-    model = macro_model(name)
-    s = FVSolver(mesh, model, FVOptions(implicit_pressure=implicit, exit=exit))
-    assert s.xmodel.all_edges_flux is not None
-    Q = _rough_state(model, mesh)
-    s.update_route(Q)
-    s.residual(Q, 0.0, 1e-4)  # allocates the work arrays
-    Q = Q.copy()
-    Q[s.e2t[s.exits, 0], 1] = np.abs(Q[s.e2t[s.exits, 0], 1])  # crowds leaving too
-    s.live[::5] = False
-    R = s.recon
-    R.apply(Q, s._Es.reshape(-1, 3), s._Vi, order=3, eps_hat=0.1, qref=s.qref,
-            slot=s._slot, positivity=None, cact=s.cact)
-    done = s._all_edges(True, Q, np.empty_like(s._FL), np.empty_like(s._alpha))
-    assert done == (s.exit_kind == "godunov")
-    got = []
-    for hook in (s.xmodel.all_edges_flux, None):
-        s.xmodel.all_edges_flux = hook
-        F, a = np.full_like(s._FL, np.nan), np.full_like(s._alpha, np.nan)
-        s._low_order(Q, 0.0, F, a)
-        FH = np.full_like(s._FL, np.nan)
-        s._fluxes(0.0, FH)
-        got.append((F, a, FH))
-    for x, y in zip(*got):
-        assert np.all(np.isfinite(x))
-        np.testing.assert_allclose(x, y, rtol=0, atol=1e-14 * np.abs(y).max())
-    dead = ~s.live
-    assert np.all(got[0][0][dead] == 0) and np.all(got[0][1][dead] == 0)
-    assert np.all(got[0][2][dead] == 0)
     b = np.concatenate([s.walls, s.exits])
     assert np.abs(got[0][0][s.exits, 0]).max() > 0 and np.abs(got[0][2][b]).max() > 0
 
@@ -333,8 +288,6 @@ def test_one_pass_hooks_step_aside_for_a_subclass_with_its_own_flux_or_source():
     assert OwnFlux().boundary_flux is None and OwnExit().boundary_flux is None
     assert OwnExit().edge_flux is not None
     assert PayneWhitham().source_mean is not None and PayneWhitham().boundary_flux is not None
-    assert OwnFlux().all_edges_flux is None and OwnExit().all_edges_flux is None
-    assert Own().all_edges_flux is not None and PayneWhitham().all_edges_flux is not None
 
     from pedmesh.models.continuum.rdue import RDUE
 

@@ -412,103 +412,24 @@ def boundary_edges(q, nx, ny, g, wall, kind, prm, xkind, xprm, rho_cut, umax, h_
                 am = 0.0
                 for j in range(g):
                     k = a_ * g + j
-                    f[j, 0], f[j, 1], f[j, 2], aj = _boundary_point(
-                        q[k], nx[k], ny[k], wall, kind, prm, xkind, xprm, rho_cut, umax,
-                        h_rho, h_val, want_alpha, exit_speed, s)
+                    if wall:
+                        s[0], s[1], s[2] = _mirror_point(q[k], nx[k], ny[k])
+                        f[j, 0], f[j, 1], f[j, 2], _ = _rusanov_point(
+                            q[k], s, nx[k], ny[k], kind, prm, rho_cut, umax)
+                    else:
+                        f[j, 0], f[j, 1], f[j, 2] = _godunov_point(
+                            q[k], nx[k], ny[k], xkind, xprm, rho_cut, umax, h_rho, h_val)
                     if want_alpha:
+                        if exit_speed and not wall:
+                            aj = _exit_speed_point(q[k], f[j, 0], nx[k], ny[k], rho_cut,
+                                                   umax)
+                        else:
+                            _, _, _, aj = _rusanov_point(q[k], q[k], nx[k], ny[k], kind, prm,
+                                                         rho_cut, umax)
                         am = aj if j == 0 else max(am, aj)
                 _integrate(f, g, lengths[e], F, e)
                 if want_alpha:
                     alpha[e] = am
-
-
-@nb.njit(**FAST, inline="always")
-def _boundary_point(q, nx, ny, wall, kind, prm, xkind, xprm, rho_cut, umax, h_rho, h_val,
-                    want_alpha, exit_speed, s):
-    """The wall (``wall``) or Godunov exit flux (3 components) of the state (3,) ``q`` across
-    the unit normal (nx, ny), and with ``want_alpha`` its wave speed (else 0): see
-    :func:`boundary_edges`; ``s`` (3,) is scratch for the mirror state."""
-    a = 0.0
-    if wall:
-        s[0], s[1], s[2] = _mirror_point(q, nx, ny)
-        f0, f1, f2, _ = _rusanov_point(q, s, nx, ny, kind, prm, rho_cut, umax)
-    else:
-        f0, f1, f2 = _godunov_point(q, nx, ny, xkind, xprm, rho_cut, umax, h_rho, h_val)
-    if want_alpha:
-        if exit_speed and not wall:
-            a = _exit_speed_point(q, f0, nx, ny, rho_cut, umax)
-        else:
-            _, _, _, a = _rusanov_point(q, q, nx, ny, kind, prm, rho_cut, umax)
-    return f0, f1, f2, a
-
-
-@nb.njit(**PAR)
-def first_order_edges(Q, e2t, order, n_i, n_w, nx, ny, kind, prm, xkind, xprm, rho_cut, umax,
-                      h_rho, h_val, exit_speed, lengths, F, alpha, live):
-    """Every edge's first-order flux and wave speed in one parallel pass, read from the
-    cell averages ``Q``: ``order`` lists the interior edges (the first ``n_i``), then the
-    walls (``n_w``), then the exits; ``nx``, ``ny`` (n_edges, 2) the unit normals in that
-    order (the first column used: one point per edge). The interior edges as
-    :func:`rusanov_cells`, the walls and exits as :func:`boundary_edges` with one point
-    per edge; ``F[e]`` and ``alpha[e]`` 0 on edges that are not ``live``."""
-    n_k = order.shape[0]
-    for c_ in nb.prange(NCHUNK):  # blocks dealt out in turn (load balance)
-        s = np.empty(3)
-        for b_ in range(c_, (n_k + BLOCK - 1) // BLOCK, NCHUNK):
-            for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
-                e = order[k]
-                if not live[e]:
-                    F[e, 0] = F[e, 1] = F[e, 2] = alpha[e] = 0.0
-                    continue
-                if k < n_i:
-                    f0, f1, f2, a = _rusanov_point(Q[e2t[e, 0]], Q[e2t[e, 1]], nx[k, 0],
-                                                   ny[k, 0], kind, prm, rho_cut, umax)
-                else:
-                    f0, f1, f2, a = _boundary_point(
-                        Q[e2t[e, 0]], nx[k, 0], ny[k, 0], k < n_i + n_w, kind, prm, xkind,
-                        xprm, rho_cut, umax, h_rho, h_val, True, exit_speed, s)
-                w = lengths[e]
-                F[e, 0] = w * f0
-                F[e, 1] = w * f1
-                F[e, 2] = w * f2
-                alpha[e] = a
-
-
-@nb.njit(**PAR)
-def second_order_edges(Es, order, n_i, n_w, nx, ny, kind, prm, xkind, xprm, rho_cut, umax,
-                       h_rho, h_val, lengths, F, live):
-    """Every edge's flux from the reconstructed states at its 2 Gauss points in one parallel
-    pass: ``Es`` (2, n_edges, 2, 3) the states inside and outside each edge in the order
-    ``order`` (interior edges, the first ``n_i``, then ``n_w`` walls, then the exits),
-    ``nx``, ``ny`` (n_edges, 2) the unit normals at the points in that order. The interior
-    edges as :func:`rusanov_edges` (the normal of the first point), the walls and exits as
-    :func:`boundary_edges`; 0 on edges that are not ``live``."""
-    n_k = order.shape[0]
-    for c_ in nb.prange(NCHUNK):
-        s = np.empty(3)
-        for b_ in range(c_, (n_k + BLOCK - 1) // BLOCK, NCHUNK):
-            for k in range(b_ * BLOCK, min(n_k, (b_ + 1) * BLOCK)):
-                e = order[k]
-                if not live[e]:
-                    F[e, 0] = F[e, 1] = F[e, 2] = 0.0
-                    continue
-                if k < n_i:
-                    f0, f1, f2, _ = _rusanov_point(Es[0, k, 0], Es[1, k, 0], nx[k, 0],
-                                                   ny[k, 0], kind, prm, rho_cut, umax)
-                    g0, g1, g2, _ = _rusanov_point(Es[0, k, 1], Es[1, k, 1], nx[k, 0],
-                                                   ny[k, 0], kind, prm, rho_cut, umax)
-                else:
-                    wall = k < n_i + n_w
-                    f0, f1, f2, _ = _boundary_point(
-                        Es[0, k, 0], nx[k, 0], ny[k, 0], wall, kind, prm, xkind, xprm,
-                        rho_cut, umax, h_rho, h_val, False, False, s)
-                    g0, g1, g2, _ = _boundary_point(
-                        Es[0, k, 1], nx[k, 1], ny[k, 1], wall, kind, prm, xkind, xprm,
-                        rho_cut, umax, h_rho, h_val, False, False, s)
-                w = 0.5 * lengths[e]
-                F[e, 0] = w * (f0 + g0)
-                F[e, 1] = w * (f1 + g1)
-                F[e, 2] = w * (f2 + g2)
 
 
 @nb.njit(**FAST, inline="always")
@@ -753,27 +674,6 @@ class BarotropicModel(MacroModel):
         boundary_edges(q, nx, ny, g, name == "wall", self.law.kind, self.law.params, x.kind,
                        x.params, self.rho_vac, self.u_max, self._h_rho, self._h_val, edges,
                        lengths, F, al, want, x is not self.law, live)
-        return True
-
-    def all_edges_flux(self, first_order, src, e2t, order, n_i, n_w, nx, ny, lengths, F,
-                       alpha, live, exit_kind):
-        """Every edge's flux in one pass (:func:`first_order_edges` from the cell averages
-        ``src``, with the wave speeds into ``alpha``, or :func:`second_order_edges` from
-        the edge states ``src``): what :meth:`cell_flux`, :meth:`edge_flux` and
-        :meth:`boundary_flux` give. Returns False (nothing done) for exit conditions other
-        than 'godunov'."""
-        if exit_kind != "godunov":
-            return False
-        x = self.exit_law
-        if first_order:
-            first_order_edges(src, e2t, order, n_i, n_w, nx, ny, self.law.kind,
-                              self.law.params, x.kind, x.params, self.rho_vac, self.u_max,
-                              self._h_rho, self._h_val, x is not self.law, lengths, F, alpha,
-                              live)
-        else:
-            second_order_edges(src, order, n_i, n_w, nx, ny, self.law.kind, self.law.params,
-                               x.kind, x.params, self.rho_vac, self.u_max, self._h_rho,
-                               self._h_val, lengths, F, live)
         return True
 
     def source(self, q, ex, ey):

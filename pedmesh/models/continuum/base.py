@@ -15,8 +15,7 @@ __all__ = ["MacroModel"]
 ROUTE_SPEED_FLOOR_M_S = 0.05
 #: the optional one-pass hooks and the methods whose work each does
 ONE_PASS_HOOKS = {"cell_flux": ("flux",), "edge_flux": ("flux",), "source_mean": ("source",),
-                  "boundary_flux": ("flux", "wall_flux", "exit_flux", "exit_wave_speed"),
-                  "all_edges_flux": ("flux", "wall_flux", "exit_flux", "exit_wave_speed")}
+                  "boundary_flux": ("flux", "wall_flux", "exit_flux", "exit_wave_speed")}
 
 
 class MacroModel:
@@ -82,16 +81,6 @@ class MacroModel:
     #: :meth:`exit_wave_speed` give them (to round-off); False where it does not cover the
     #: case. None: the solver calls those methods and integrates
     boundary_flux = None
-    #: optional ``all_edges_flux(first_order, src, e2t, order, n_i, n_w, nx, ny, lengths, F,
-    #: alpha, live, exit_kind) -> bool``: every edge's flux in one pass, integrated into
-    #: ``F``: with ``first_order`` from the cell averages ``src`` (m, nv), each edge's
-    #: largest wave speed into ``alpha``, else from the edge states ``src`` (2, n_edges, 2,
-    #: nv) at the edges' 2 Gauss points; ``order`` the interior edges (the first ``n_i``),
-    #: then ``n_w`` walls, then the exits, ``nx``, ``ny`` (n_edges, 2) the unit normals at
-    #: the points in that order; 0 on edges not ``live``. As :attr:`cell_flux`,
-    #: :attr:`edge_flux` and :attr:`boundary_flux` give them (one parallel region instead
-    #: of several); False where it does not cover the case. None: those hooks
-    all_edges_flux = None
 
     def wall_flux(self, q, nx, ny, ex, ey):
         """Flux density (k, nv) through a wall with outward normal n (zero mass flux)."""

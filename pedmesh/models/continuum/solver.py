@@ -403,11 +403,6 @@ class FVSolver:
                 pts=np.ascontiguousarray(self.recon.edge_pt[idx].reshape(-1, 2)),
             )
             start += k
-        # every edge in that order, for a model's one-pass flux of all edges
-        self._order = np.concatenate([self.interior, self.walls, self.exits]).astype(np.int64)
-        self._n_i, self._n_w = len(self.interior), len(self.walls)
-        self._nxp = np.ascontiguousarray(self.nx2[self._order])
-        self._nyp = np.ascontiguousarray(self.ny2[self._order])
         self._F = np.empty((self.mesh.n_edges, nv))
         self._FL = np.empty((self.mesh.n_edges, nv))
         self._Fb = np.empty((self.mesh.n_edges, nv))
@@ -461,9 +456,6 @@ class FVSolver:
         model = self.xmodel
         nv = model.n_vars
         one = self._one_point_low_order(constant)
-        if (not constant and alpha is None and not skip_interior
-                and self._all_edges(False, self._Es, F, None)):
-            return
         sfx = "1" if one else ""
         for name, c in self._cat.items():
             idx = c["idx"]
@@ -503,27 +495,11 @@ class FVSolver:
             K.integrate_edges(np.ascontiguousarray(Fp).reshape(len(idx), -1, nv), self.lengths,
                               idx, F, self.live)
 
-    def _all_edges(self, first_order: bool, src: np.ndarray, F: np.ndarray,
-                   alpha: np.ndarray | None) -> bool:
-        """Every edge's flux in the model's one pass (its ``all_edges_flux``), if it has
-        one for this case: first-order from the cell averages ``src`` (with the wave speeds
-        into ``alpha``) or from the edge states ``src`` (:attr:`_Es`); returns whether it
-        did."""
-        model = self.xmodel
-        if model.all_edges_flux is None or self.boundary_state is not None:
-            return False
-        return bool(model.all_edges_flux(first_order, src, self.e2t, self._order, self._n_i,
-                                         self._n_w, self._nxp, self._nyp, self.lengths, F,
-                                         alpha if alpha is not None else self._alpha,
-                                         self.live, self.exit_kind))
-
     def _low_order(self, Q: np.ndarray, t: float, F: np.ndarray, alpha: np.ndarray) -> None:
         """First-order edge fluxes ``F`` of cell averages ``Q`` and every edge's largest wave
         speed ``alpha`` [m/s]. A model's ``cell_flux`` reads the interior edges' cell
         averages in place (no gathered edge states)."""
         one = self._one_point_low_order(True)
-        if one and self._all_edges(True, Q, F, alpha):
-            return
         sfx = "1" if one else ""
         fused = self.xmodel.cell_flux is not None and self.boundary_state is None
         for name, c in self._cat.items():
