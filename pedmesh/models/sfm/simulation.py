@@ -221,6 +221,9 @@ class Simulation:
         #: (n_points,) [ped/m^2] a density at the mesh's vertices the route cost adds to
         #: the crowd's (a hybrid model's continuum), None: none
         self.extra_route_density = None
+        #: (n_points,) [ped/m^2] the density the last route solve read (set by the first
+        #: solve, in the constructor)
+        self.route_rho = None
 
     def _init_records(self, N: int) -> None:
         """The clock (``t`` [s], ``steps``), the densities at the pedestrians [ped/m^2], the
@@ -637,7 +640,6 @@ class Simulation:
         t0 = time.perf_counter()
         if self.reroute or self.steps == 0:
             rho_v = self.route_density()
-            #: (n_points,) [ped/m^2] the density the last route solve read
             self.route_rho = rho_v
             cost = self.params.speed.route_cost(rho_v)
             if self._route_wall is not None:
