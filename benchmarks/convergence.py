@@ -3,8 +3,9 @@
 For each room and model, T50 and T90 [s] on uniform meshes of ``max_area`` 2 ... 0.02 m^2
 (``feature_area`` None) and on the default graded mesh; the social force model with two
 seeds a mesh (their mean and spread), the continuum models once (they are deterministic).
-Then the social force model's own numerical setting, ``route_resolution`` (the edge of its
-route mesh at the exits and reflex corners), refined at the default mesh::
+Then the social force model's own discretisation at the default mesh: ``route_resolution``
+(the edge of its route mesh at the exits and reflex corners) and ``route_refine`` (every edge
+of the route mesh divided)::
 
     python benchmarks/convergence.py --json docs/data/convergence.json \\
         [--rooms uo-100,example2] [--models sfm-validated,sfm-paper,eos,rdue,pw] \\
@@ -44,15 +45,21 @@ MODELS = {"sfm-validated": ("sfm", "validated"), "sfm-paper": ("sfm", "paper"),
 SEEDS = (0, 1)
 #: [m] the social force model's route mesh resolutions refined at the default mesh
 RESOLUTIONS = (0.2, 0.1, 0.05)
+#: the route mesh refinements (``route_refine``: every edge divided) at the preset's
+#: route_resolution
+REFINES = (2.0,)
 #: [m] the route kernels of the sensitivity study (the model, not the numerics)
 KERNELS = (1.0, 1.5, 2.0, 3.0)
 
 
-def _key(room: str, label: str, area, seed, resolution=None, kernel=None) -> str:
-    return f"{room}|{label}|{area}|{seed}|{resolution}" + (f"|L{kernel}" if kernel else "")
+def _key(room: str, label: str, area, seed, resolution=None, kernel=None,
+         refine=None) -> str:
+    return (f"{room}|{label}|{area}|{seed}|{resolution}" + (f"|L{kernel}" if kernel else "")
+            + (f"|x{refine:g}" if refine else ""))
 
 
-def run_one(room: str, label: str, area, seed, resolution=None, kernel=None) -> dict:
+def run_one(room: str, label: str, area, seed, resolution=None, kernel=None,
+            refine=None) -> dict:
     """T50, T90, T100 [s] and the wall time of one run."""
     import pedmesh
 
@@ -62,6 +69,8 @@ def run_one(room: str, label: str, area, seed, resolution=None, kernel=None) -> 
     params = {} if resolution is None else {"route_resolution": float(resolution)}
     if kernel is not None:
         params["route_kernel"] = float(kernel)
+    if refine is not None:
+        params["route_refine"] = float(refine)
     t0 = time.perf_counter()
     res = pedmesh.simulate(str(ROOMS[room]), model, preset=preset, mesh_options=mo,
                            params=params, t_end=1000.0, **kw)
@@ -84,6 +93,8 @@ def _plan(rooms, labels, resolutions) -> list[tuple]:
             todo += [(room, "sfm-validated", "default", s, r) for r in resolutions
                      for s in SEEDS]
             todo += [(room, "sfm-validated", "default", s, None, k) for k in KERNELS
+                     for s in SEEDS]
+            todo += [(room, "sfm-validated", "default", s, None, None, f) for f in REFINES
                      for s in SEEDS]
     return todo
 
@@ -137,7 +148,21 @@ def summarise(runs: dict, rooms, labels, resolutions) -> dict:
                                        ("T50", "T90")},
                                     **{f"{q}_spread": float(np.ptp([g[q] for g in got]))
                                        for q in ("T50", "T90")}})
-        out[room] = {"rows": rows, "resolution": study, "kernel": kernels}
+        refines = []
+        if "sfm-validated" in labels:
+            for f in (1.0, *REFINES):
+                got = [runs.get(_key(room, "sfm-validated", "default", s, None, None,
+                                     None if f == 1.0 else f)) for s in SEEDS]
+                got = [g for g in got if g is not None]
+                if got:
+                    refines.append({"refine": f, "n": len(got),
+                                    "route_mesh": got[0].get("route_mesh"),
+                                    **{q: float(np.mean([g[q] for g in got])) for q in
+                                       ("T50", "T90")},
+                                    **{f"{q}_spread": float(np.ptp([g[q] for g in got]))
+                                       for q in ("T50", "T90")}})
+        out[room] = {"rows": rows, "resolution": study, "kernel": kernels,
+                     "refine": refines}
     return out
 
 
@@ -218,6 +243,8 @@ def main(argv=None) -> int:
         for r in s["resolution"]:
             print(f"  route_resolution {r['resolution']:g} m: T50 {r['T50']:.1f}, "
                   f"T90 {r['T90']:.1f}")
+        for r in s["refine"]:
+            print(f"  route_refine {r['refine']:g}: T50 {r['T50']:.1f}, T90 {r['T90']:.1f}")
     if args.plot:
         plot(summary, args.plot)
     return 0

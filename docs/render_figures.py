@@ -258,6 +258,14 @@ def convergence(path: Path = DATA / "convergence.json") -> str:
             lines += _table(["route_resolution [m]", "T50 [s]", "T90 [s]"],
                             [[f"{r['resolution']:g}", _t(r["T50"], r["T50_spread"]),
                               _t(r["T90"], r["T90_spread"])] for r in s["resolution"]])
+        if s.get("refine"):
+            lines += ["", f"**{room}**, `sfm-validated` at the default mesh with every edge of "
+                      "its route mesh divided by `route_refine` (1: the preset):", ""]
+            lines += _table(["route_refine", "route mesh triangles", "T50 [s]", "T90 [s]"],
+                            [[f"{r['refine']:g}", f"{r['route_mesh']:,}"
+                              if r.get("route_mesh") else "-",
+                              _t(r["T50"], r["T50_spread"]), _t(r["T90"], r["T90_spread"])]
+                             for r in s["refine"]])
         if s.get("kernel"):
             lines += ["", f"**{room}**, `sfm-validated` at the default mesh against its "
                       "`route_kernel` (the model, not the numerics):", ""]

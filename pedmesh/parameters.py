@@ -404,6 +404,11 @@ SFM_NUMERICS: tuple[Parameter, ...] = declare(
               "the reflex corners (door jambs, pillars), growing by 0.2 m per metre to a "
               "third of route_kernel (None: on the run's mesh, as the paper; the run's mesh "
               "then only carries the output)", optional=True, range=(0.01, 2.0)),
+    _positive("route_refine", 1.0, "", "every edge of the social force model's route mesh "
+              "divided by this (route_resolution at the exits and corners, the edges along "
+              "the walls and in the open): a check of the route's own discretisation "
+              "(docs/validation/route_convergence.md); 1 in every preset",
+              range=(1.0, 16.0)),
     _positive("force_cutoff", 1.2, "m", "interaction cut-off: A exp((0.3 - 1.2)/0.08) = "
               "0.026 N, 2e-4 of the driving force m U_f / tau = 124 N", range=(0.1, 10.0)),
     _positive("density_cutoff", 3.0, "R", "density-kernel cut-off in units of R: "

@@ -61,19 +61,21 @@ def reflex_corners(room, min_turn: float = REFLEX_TURN) -> np.ndarray:
 
 
 def route_size_field(room, resolution: float, open_edge: float,
-                     growth: float = ROUTE_GROWTH, *, wall_edge: float | None = None):
+                     growth: float = ROUTE_GROWTH, *, wall_edge: float | None = None,
+                     refine: float = 1.0):
     """The route mesh's size field: (p, 2) points [m] -> largest triangle area [m^2], of an
     equilateral triangle with edge ``resolution + growth d`` [m] (``d`` the distance to the
     nearest exit or reflex corner), at most ``open_edge`` [m]; with ``wall_edge`` [m] also
     at most ``wall_edge + WALL_GROWTH d_w`` (``d_w`` the distance to the nearest wall or
-    obstacle: a route that keeps a clearance from walls varies there)."""
+    obstacle: a route that keeps a clearance from walls varies there); every edge divided
+    by ``refine``."""
     features = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
     features += list(shapely.points(reflex_corners(room)))
     tree = shapely.STRtree(features)
     wall_tree = None
     if wall_edge is not None:
         pieces = shapely.get_parts(shapely.segmentize(room.walkable.boundary,
-                                                      2.0 * wall_edge))
+                                                      2.0 * wall_edge / refine))
         wall_tree = shapely.STRtree([w for ln in pieces for w in _segments(ln)])
 
     def size(xy: np.ndarray) -> np.ndarray:
@@ -81,7 +83,7 @@ def route_size_field(room, resolution: float, open_edge: float,
         h = np.minimum(resolution + growth * _nearest_distance(tree, xy), open_edge)
         if wall_tree is not None:
             h = np.minimum(h, wall_edge + WALL_GROWTH * _nearest_distance(wall_tree, xy))
-        return _edge_to_area(h)
+        return _edge_to_area(h / refine)
 
     return size
 
@@ -92,42 +94,49 @@ def open_edge_of(kernel: float) -> float:
 
 
 def route_mesh(site, *, resolution: float, kernel: float, clearance: float = 0.0,
-               max_cells: float | None = None):
+               refine: float = 1.0, max_cells: float | None = None):
     """The mesh a social force run on ``site`` (a :class:`~pedmesh.geometry.Room` or a
     :class:`~pedmesh.geometry.Building`) walks on: edges of ``resolution`` [m] at the exits
     and reflex corners, ``kernel`` / 3 [m] in the open, and with a ``clearance`` [m] (the
     route keeps off walls) ``clearance`` / 3 along the walls (see the module docstring).
-    The last few are kept and reused. A one-line :class:`~pedmesh.errors.MeshError` names
-    the parameters when the mesh would be too large."""
-    for name, v in (("route_resolution", resolution), ("route_kernel", kernel)):
+    ``refine`` (the parameter ``route_refine``) divides every one of these edges: a
+    convergence check of the route's discretisation as a whole. The last few meshes are
+    kept and reused. A one-line :class:`~pedmesh.errors.MeshError` names the parameters
+    when the mesh would be too large."""
+    for name, v in (("route_resolution", resolution), ("route_kernel", kernel),
+                    ("route_refine", refine)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise MeshError(f"{name} must be a positive number of metres, got {v!r}")
+            raise MeshError(f"{name} must be a positive number, got {v!r}")
     h_open = max(open_edge_of(kernel), float(resolution))
     h_wall = max(OPEN_EDGE_PER_KERNEL * float(clearance), float(resolution)) \
         if clearance and clearance > 0 else None
+    refine = float(refine)
     from ..geometry.site import is_building
 
     if is_building(site):  # (not kept: its levels are meshed anew)
         from .building import triangulate_building
 
         return triangulate_building(
-            site, max_area=float(_edge_to_area(h_open)), feature_area=None,
+            site, max_area=float(_edge_to_area(h_open / refine)), feature_area=None,
             max_cells=max_cells,
             size_of=lambda room: route_size_field(room, float(resolution), h_open,
-                                                  wall_edge=h_wall))
-    key = (room_fingerprint(site), float(resolution), float(h_open), h_wall, max_cells)
+                                                  wall_edge=h_wall, refine=refine))
+    key = (room_fingerprint(site), float(resolution), float(h_open), h_wall, refine,
+           max_cells)
     mesh = _cache.get(key)
     if mesh is None:
-        size = route_size_field(site, float(resolution), h_open, wall_edge=h_wall)
-        max_area = float(_edge_to_area(h_open))
+        size = route_size_field(site, float(resolution), h_open, wall_edge=h_wall,
+                                refine=refine)
+        max_area = float(_edge_to_area(h_open / refine))
         limit = MAX_CELLS if max_cells is None else float(max_cells)
         n = estimate_cells(site, max_area, [size])
         if n > limit:  # (named by the route's parameters, not the run's mesh options)
             raise MeshError(
                 f"room '{site.name}': the social force model's route mesh would have about "
-                f"{n:,.0f} triangles (route_resolution {resolution:g} m, route_kernel "
-                f"{kernel:g} m), more than the limit of {limit:,.0f}; use a larger "
-                "route_resolution or route_kernel (--param NAME=VALUE)")
+                f"{n:,.0f} triangles (route_resolution {resolution:g} m, "
+                f"route_kernel {kernel:g} m, route_refine {refine:g}), more than the limit "
+                f"of {limit:,.0f}; use a larger route_resolution or route_kernel or a smaller "
+                "route_refine (--param NAME=VALUE)")
         mesh = triangulate(site, max_area=max_area, min_angle=MIN_ANGLE, feature_area=None,
                            size=size, max_cells=math.inf)
         _cache[key] = mesh

@@ -4,6 +4,7 @@ and convergence as the route mesh is refined."""
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -142,22 +143,50 @@ def test_without_route_resolution_the_run_walks_on_its_own_mesh():
     assert "route_mesh" not in run.summary()
 
 
+@functools.lru_cache(maxsize=None)
+def _door_times(resolution: float | None, refine: float) -> tuple:
+    """Mean T50, T90 [s] over seeds 1-4 of the validated preset in the 60-person door room,
+    at ``route_resolution`` ``resolution`` (None: the preset's) with the route mesh refined
+    by ``refine``."""
+    params = {"route_refine": refine}
+    if resolution is not None:
+        params["route_resolution"] = resolution
+    runs = [pedmesh.simulate(_door_room(60), "sfm", preset="validated", params=params,
+                             seed=s, t_end=200.0).times for s in (1, 2, 3, 4)]
+    assert all(r["T100"] is not None for r in runs)
+    return tuple(float(np.mean([r[k] for r in runs])) for k in ("T50", "T90"))
+
+
+@pytest.mark.xfail(strict=True, reason="issue 44, open: the social force model's route is "
+                   "not converged at a 0.8 m door; halving every route mesh edge moves T90 by "
+                   "4-5 % (docs/validation/route_convergence.md)")
 def test_routes_converge_as_the_route_mesh_is_refined():
-    """A small convergence study (two seeds a point): T50 and T90 at route_resolution 0.2,
-    0.1 and 0.05 m. The last two agree within 3 %; and the change from 0.1 to 0.05 is no
-    larger than from 0.2 to 0.1 plus the seeds' noise."""
-    room = _door_room(60)
-    t = {}
-    for res in (0.2, 0.1, 0.05):
-        runs = [pedmesh.simulate(room, "sfm", preset="validated",
-                                 params={"route_kernel": 2.0, "route_resolution": res},
-                                 seed=s, t_end=200.0).times for s in (1, 2)]
-        assert all(r["T100"] is not None for r in runs)
-        t[res] = np.array([np.mean([r[k] for r in runs]) for k in ("T50", "T90")])
-    print({k: v.round(2).tolist() for k, v in t.items()})
-    rel = np.abs(t[0.1] / t[0.05] - 1.0)
-    assert np.all(rel <= 0.03)
-    assert np.all(np.abs(t[0.1] - t[0.05]) <= np.abs(t[0.2] - t[0.1]) + 0.02 * t[0.05])
+    """The validated preset's route mesh against one with every edge halved (route_refine
+    2: the exits' and jambs' edges, their growth away from them, the walls' and the open
+    area's edges), four seeds each: T50 and T90 within 3 % at a 0.8 m door. Measured: T90
+    34.3 s against 36.1 s (+5 %); at route_resolution 0.05 m 35.2 s against 36.7 s (+4 %)."""
+    t0, t2 = np.array(_door_times(None, 1.0)), np.array(_door_times(None, 2.0))
+    print({"preset": t0.round(2).tolist(), "refine 2": t2.round(2).tolist()})
+    assert np.all(np.abs(t0 / t2 - 1.0) <= 0.03)
+
+
+def test_route_refine_divides_every_edge_of_the_route_mesh():
+    """route_refine 2 halves the edges everywhere: about four times the triangles, and the
+    edges at a jamb halved."""
+    room = _door_room()
+    m1 = route_mesh(room, resolution=0.1, kernel=2.0, clearance=0.5)
+    m2 = route_mesh(room, resolution=0.1, kernel=2.0, clearance=0.5, refine=2.0)
+    assert 3.2 <= m2.n_triangles / m1.n_triangles <= 4.8
+
+    def median_edge_near_jambs(m):
+        mid = m.points[m.edges].mean(axis=1)
+        near = np.hypot(mid[:, 0] - 2.6, mid[:, 1] - 5.0) < 0.15
+        return np.median(np.linalg.norm(np.diff(m.points[m.edges[near]], axis=1)[:, 0],
+                                         axis=1))
+
+    assert 0.4 <= median_edge_near_jambs(m2) / median_edge_near_jambs(m1) <= 0.6
+    with pytest.raises(pedmesh.MeshError, match="route_refine"):
+        route_mesh(room, resolution=0.1, kernel=2.0, refine=0.0)
 
 
 def test_a_building_walks_on_its_route_mesh_and_writes_on_its_own():

@@ -90,7 +90,8 @@ class SFMRun:
         kernel = self.params.route_kernel if self.params.route_kernel is not None \
             else self.params.R
         self.route_mesh = route_mesh(site, resolution=res, kernel=kernel,
-                                     clearance=self.params.route_clearance)
+                                     clearance=self.params.route_clearance,
+                                     refine=self.numerics.route_refine)
         return self.route_mesh
 
     def _check_rate(self, rate: float) -> None:

@@ -95,6 +95,7 @@ class SFMNumerics:
     dt: float = P.field("dt")
     route_interval: float = P.field("route_interval")
     route_resolution: float | None = P.field("route_resolution")
+    route_refine: float = P.field("route_refine")
     force_cutoff: float = P.field("force_cutoff")
     density_cutoff: float = P.field("density_cutoff")
     density_stages: int = P.field("density_stages")
