@@ -99,6 +99,14 @@ def _plan(rooms, labels, resolutions) -> list[tuple]:
     return todo
 
 
+def _seed_stats(got: list[dict]) -> dict:
+    """The runs ``got`` of one setting (one per seed): their count, mean T50 / T90 [s] and
+    the spread (max - min) of each."""
+    q = ("T50", "T90")
+    return {"n": len(got), **{k: float(np.mean([g[k] for g in got])) for k in q},
+            **{f"{k}_spread": float(np.ptp([g[k] for g in got])) for k in q}}
+
+
 def summarise(runs: dict, rooms, labels, resolutions) -> dict:
     """Per room and model: for each mesh the mean T50/T90 over the seeds, their spread (max
     - min), and the change against the default mesh; the route resolution study."""
@@ -125,42 +133,20 @@ def summarise(runs: dict, rooms, labels, resolutions) -> dict:
                     c[f"d{k}"] = (c[k] / base[k] - 1.0 if base and c[k] and base[k]
                                   else None)
             rows.append({"model": label, "meshes": cols})
-        study = []
+        study, kernels, refines = [], [], []
         if "sfm-validated" in labels:
-            for r in resolutions:
-                got = [runs.get(_key(room, "sfm-validated", "default", s, r)) for s in SEEDS]
-                got = [g for g in got if g is not None]
-                if got:
-                    study.append({"resolution": r, "n": len(got),
-                                  **{k: float(np.mean([g[k] for g in got])) for k in
-                                     ("T50", "T90")},
-                                  **{f"{k}_spread": float(np.ptp([g[k] for g in got]))
-                                     for k in ("T50", "T90")}})
-        kernels = []
-        if "sfm-validated" in labels:
-            for k in KERNELS:
-                got = [runs.get(_key(room, "sfm-validated", "default", s, None, k))
+            def seeds_of(*setting) -> list[dict]:
+                got = [runs.get(_key(room, "sfm-validated", "default", s, *setting))
                        for s in SEEDS]
-                got = [g for g in got if g is not None]
-                if got:
-                    kernels.append({"kernel": k, "n": len(got),
-                                    **{q: float(np.mean([g[q] for g in got])) for q in
-                                       ("T50", "T90")},
-                                    **{f"{q}_spread": float(np.ptp([g[q] for g in got]))
-                                       for q in ("T50", "T90")}})
-        refines = []
-        if "sfm-validated" in labels:
-            for f in (1.0, *REFINES):
-                got = [runs.get(_key(room, "sfm-validated", "default", s, None, None,
-                                     None if f == 1.0 else f)) for s in SEEDS]
-                got = [g for g in got if g is not None]
-                if got:
-                    refines.append({"refine": f, "n": len(got),
-                                    "route_mesh": got[0].get("route_mesh"),
-                                    **{q: float(np.mean([g[q] for g in got])) for q in
-                                       ("T50", "T90")},
-                                    **{f"{q}_spread": float(np.ptp([g[q] for g in got]))
-                                       for q in ("T50", "T90")}})
+                return [g for g in got if g is not None]
+
+            study = [{"resolution": r, **_seed_stats(g)} for r in resolutions
+                     if (g := seeds_of(r))]
+            kernels = [{"kernel": k, **_seed_stats(g)} for k in KERNELS
+                       if (g := seeds_of(None, k))]
+            refines = [{"refine": f, "route_mesh": g[0].get("route_mesh"), **_seed_stats(g)}
+                       for f in (1.0, *REFINES)
+                       if (g := seeds_of(None, None, None if f == 1.0 else f))]
         out[room] = {"rows": rows, "resolution": study, "kernel": kernels,
                      "refine": refines}
     return out

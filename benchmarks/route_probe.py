@@ -36,6 +36,7 @@ from pedmesh.eikonal.fmm import EikonalSolver
 from pedmesh.mesh.route_mesh import route_mesh
 from pedmesh.models.sfm.simulation import Simulation
 from pedmesh.models.sfm.walls import clearance_factor
+from pedmesh.parameters import parse_overrides
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "sfm"))
 from test_routes import _door_room  # noqa: E402  (the test's room)
@@ -75,9 +76,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=12)
     ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE")
     a = ap.parse_args(argv)
-    params = dict(p.split("=", 1) for p in a.param)
-    params = {k: (float(v) if v.replace(".", "", 1).isdigit() else v)
-              for k, v in params.items()}
+    params = parse_overrides(a.param)
     room = _door_room(60)
     from pedmesh.presets import get_preset
 

@@ -103,10 +103,10 @@ def route_mesh(site, *, resolution: float, kernel: float, clearance: float = 0.0
     convergence check of the route's discretisation as a whole. The last few meshes are
     kept and reused. A one-line :class:`~pedmesh.errors.MeshError` names the parameters
     when the mesh would be too large."""
-    for name, v in (("route_resolution", resolution), ("route_kernel", kernel),
-                    ("route_refine", refine)):
+    for name, v, unit in (("route_resolution", resolution, " of metres"),
+                          ("route_kernel", kernel, " of metres"), ("route_refine", refine, "")):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise MeshError(f"{name} must be a positive number, got {v!r}")
+            raise MeshError(f"{name} must be a positive number{unit}, got {v!r}")
     h_open = max(open_edge_of(kernel), float(resolution))
     h_wall = max(OPEN_EDGE_PER_KERNEL * float(clearance), float(resolution)) \
         if clearance and clearance > 0 else None
