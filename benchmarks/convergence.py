@@ -4,11 +4,13 @@ For each room and model, T50 and T90 [s] on uniform meshes of ``max_area`` 2 ...
 (``feature_area`` None) and on the default graded mesh; the social force model with two
 seeds a mesh (their mean and spread), the continuum models once (they are deterministic).
 Then the social force model's own discretisation at the default mesh: ``route_resolution``
-(the edge of its route mesh at the exits and reflex corners) and ``route_refine`` (every edge
-of the route mesh divided)::
+(the edge of its route mesh at the exits) and ``route_refine`` (every edge of the route mesh
+divided). The room ``door`` (the 60-person, 0.8 m door of ``tests/sfm/test_routes.py``) has
+only the ``route_refine`` study, 1 / 2 / 4 with twelve seeds: at a door the route's
+discretisation matters most (its run's mesh plays no part there)::
 
     python benchmarks/convergence.py --json docs/data/convergence.json \\
-        [--rooms uo-100,example2] [--models sfm-validated,sfm-paper,eos,rdue,pw] \\
+        [--rooms uo-100,example2,door] [--models sfm-validated,sfm-paper,eos,rdue,pw] \\
         [--plot docs/images/convergence.png]
 
 Every run's times are written to the JSON as soon as it ends, and a rerun with the same
@@ -33,16 +35,21 @@ from _common import write_json  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 ROOMS = {"uo-100": ROOT / "geometries" / "experiments" / "uo-100-180-180.json",
          "example2": ROOT / "geometries" / "example2.json",
-         "bottleneck": ROOT / "geometries" / "corridor_bottleneck.json"}
+         "bottleneck": ROOT / "geometries" / "corridor_bottleneck.json",
+         "door": None}  # (built in code: tests/sfm/test_routes.py's _door_room)
 #: the meshes: "default" (graded) and uniform ones of these largest areas [m^2]
 AREAS = {"uo-100": ("default", 2.0, 0.5, 0.2, 0.1, 0.05, 0.02),
          "example2": ("default", 2.0, 0.5, 0.2, 0.1),
-         "bottleneck": ("default", 2.0, 0.5, 0.2, 0.1, 0.05)}
+         "bottleneck": ("default", 2.0, 0.5, 0.2, 0.1, 0.05), "door": ()}
 #: (model, preset) of each label
 MODELS = {"sfm-validated": ("sfm", "validated"), "sfm-paper": ("sfm", "paper"),
           "sfm-weidmann": ("sfm", "weidmann"), "eos": ("eos", "validated"),
           "rdue": ("rdue", "validated"), "pw": ("pw", "validated")}
 SEEDS = (0, 1)
+#: the seeds of the door room's study (its standard error of T90 about 0.1 s)
+DOOR_SEEDS = tuple(range(1, 13))
+#: the door room's route refinements
+DOOR_REFINES = (2.0, 4.0)
 #: [m] the social force model's route mesh resolutions refined at the default mesh
 RESOLUTIONS = (0.2, 0.1, 0.05)
 #: the route mesh refinements (``route_refine``: every edge divided) at the preset's
@@ -71,8 +78,9 @@ def run_one(room: str, label: str, area, seed, resolution=None, kernel=None,
         params["route_kernel"] = float(kernel)
     if refine is not None:
         params["route_refine"] = float(refine)
+    site = _door_room() if room == "door" else str(ROOMS[room])
     t0 = time.perf_counter()
-    res = pedmesh.simulate(str(ROOMS[room]), model, preset=preset, mesh_options=mo,
+    res = pedmesh.simulate(site, model, preset=preset, mesh_options=mo,
                            params=params, t_end=1000.0, **kw)
     out = {k: res.times[k] for k in ("T50", "T90", "T100")}
     out["wall_s"] = time.perf_counter() - t0
@@ -82,9 +90,23 @@ def run_one(room: str, label: str, area, seed, resolution=None, kernel=None,
     return out
 
 
+def _door_room():
+    """The 60-person room with a 0.8 m door of tests/sfm/test_routes.py."""
+    sys.path.insert(0, str(ROOT / "tests" / "sfm"))
+    from test_routes import _door_room as door
+
+    return door(60)
+
+
 def _plan(rooms, labels, resolutions) -> list[tuple]:
     todo = []
     for room in rooms:
+        if room == "door":
+            if "sfm-validated" in labels:
+                todo += [(room, "sfm-validated", "default", s, None, None,
+                          None if f == 1.0 else f)
+                         for f in (1.0, *DOOR_REFINES) for s in DOOR_SEEDS]
+            continue
         for label in labels:
             seeds = SEEDS if label.startswith("sfm") else (None,)
             for area in AREAS[room]:
@@ -104,7 +126,9 @@ def _seed_stats(got: list[dict]) -> dict:
     the spread (max - min) of each."""
     q = ("T50", "T90")
     return {"n": len(got), **{k: float(np.mean([g[k] for g in got])) for k in q},
-            **{f"{k}_spread": float(np.ptp([g[k] for g in got])) for k in q}}
+            **{f"{k}_spread": float(np.ptp([g[k] for g in got])) for k in q},
+            **{f"{k}_se": float(np.std([g[k] for g in got], ddof=1) / np.sqrt(len(got)))
+               if len(got) > 1 else 0.0 for k in q}}
 
 
 def summarise(runs: dict, rooms, labels, resolutions) -> dict:
@@ -132,12 +156,13 @@ def summarise(runs: dict, rooms, labels, resolutions) -> dict:
                 for k in ("T50", "T90"):
                     c[f"d{k}"] = (c[k] / base[k] - 1.0 if base and c[k] and base[k]
                                   else None)
-            rows.append({"model": label, "meshes": cols})
+            if cols:
+                rows.append({"model": label, "meshes": cols})
         study, kernels, refines = [], [], []
         if "sfm-validated" in labels:
             def seeds_of(*setting) -> list[dict]:
                 got = [runs.get(_key(room, "sfm-validated", "default", s, *setting))
-                       for s in SEEDS]
+                       for s in (DOOR_SEEDS if room == "door" else SEEDS)]
                 return [g for g in got if g is not None]
 
             study = [{"resolution": r, **_seed_stats(g)} for r in resolutions
@@ -145,7 +170,7 @@ def summarise(runs: dict, rooms, labels, resolutions) -> dict:
             kernels = [{"kernel": k, **_seed_stats(g)} for k in KERNELS
                        if (g := seeds_of(None, k))]
             refines = [{"refine": f, "route_mesh": g[0].get("route_mesh"), **_seed_stats(g)}
-                       for f in (1.0, *REFINES)
+                       for f in (1.0, *(DOOR_REFINES if room == "door" else REFINES))
                        if (g := seeds_of(None, None, None if f == 1.0 else f))]
         out[room] = {"rows": rows, "resolution": study, "kernel": kernels,
                      "refine": refines}
@@ -158,7 +183,7 @@ def plot(summary: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rooms = list(summary)
+    rooms = [r for r in summary if summary[r]["rows"]]
     fig, axes = plt.subplots(1, len(rooms), figsize=(5.5 * len(rooms), 4.2), squeeze=False)
     for ax, room in zip(axes[0], rooms):
         for row in summary[room]["rows"]:
@@ -230,7 +255,8 @@ def main(argv=None) -> int:
             print(f"  route_resolution {r['resolution']:g} m: T50 {r['T50']:.1f}, "
                   f"T90 {r['T90']:.1f}")
         for r in s["refine"]:
-            print(f"  route_refine {r['refine']:g}: T50 {r['T50']:.1f}, T90 {r['T90']:.1f}")
+            print(f"  route_refine {r['refine']:g}: T50 {r['T50']:.2f} +- {r['T50_se']:.2f}, "
+                  f"T90 {r['T90']:.2f} +- {r['T90_se']:.2f} ({r['n']} seeds)")
     if args.plot:
         plot(summary, args.plot)
     return 0

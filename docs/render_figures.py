@@ -248,17 +248,32 @@ def convergence(path: Path = DATA / "convergence.json") -> str:
                 cells.append(f"{_t(c['T50'], c['T50_spread'])} / "
                              f"{_t(c['T90'], c['T90_spread'])}{d}")
             rows.append([f"`{row['model']}`", *cells])
-        lines += [f"**{room}**: T50 / T90 [s] on each mesh (the social force model: mean of "
-                  f"seeds {', '.join(map(str, res.get('seeds', [0, 1])))}, ± half their "
-                  "spread; in brackets the change against the default mesh)", ""]
-        lines += _table(head, rows, "l" * len(head))
+        if rows:
+            lines += [f"**{room}**: T50 / T90 [s] on each mesh (the social force model: mean "
+                      f"of seeds {', '.join(map(str, res.get('seeds', [0, 1])))}, ± half "
+                      "their spread; in brackets the change against the default mesh)", ""]
+            lines += _table(head, rows, "l" * len(head))
         if s["resolution"]:
             lines += ["", f"**{room}**, `sfm-validated` at the default mesh against its route "
                       "mesh's `route_resolution`:", ""]
             lines += _table(["route_resolution [m]", "T50 [s]", "T90 [s]"],
                             [[f"{r['resolution']:g}", _t(r["T50"], r["T50_spread"]),
                               _t(r["T90"], r["T90_spread"])] for r in s["resolution"]])
-        if s.get("refine"):
+        if s.get("refine") and room == "door":
+            lines += ["", "**door** (the 60-person, 0.8 m door of tests/sfm/test_routes.py), "
+                      "`sfm-validated` with every edge of its route mesh divided by "
+                      f"`route_refine` (1: the preset); mean of {s['refine'][0]['n']} seeds ± "
+                      "the standard error, in brackets the change against the preset:", ""]
+            base = s["refine"][0]
+            lines += _table(["route_refine", "route mesh triangles", "T50 [s]", "T90 [s]"],
+                            [[f"{r['refine']:g}", f"{r['route_mesh']:,}"
+                              if r.get("route_mesh") else "-",
+                              *(f"{r[k]:.2f} ± {r[k + '_se']:.2f}"
+                                + ("" if r is base else
+                                   f" ({100 * (r[k] / base[k] - 1):+.1f} %)")
+                                for k in ("T50", "T90"))]
+                             for r in s["refine"]])
+        elif s.get("refine"):
             lines += ["", f"**{room}**, `sfm-validated` at the default mesh with every edge of "
                       "its route mesh divided by `route_refine` (1: the preset):", ""]
             lines += _table(["route_refine", "route mesh triangles", "T50 [s]", "T90 [s]"],

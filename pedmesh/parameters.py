@@ -400,12 +400,13 @@ SFM_NUMERICS: tuple[Parameter, ...] = declare(
                   "potential (0: every step; the direction is held in between)",
                   range=(0.0, 1000.0)),
     _positive("route_resolution", None, "m", "the social force model's routes, walls and "
-              "crossings on a mesh of their own with edges of this length at the exits and "
-              "the reflex corners (door jambs, pillars), growing by 0.2 m per metre to a "
-              "third of route_kernel (None: on the run's mesh, as the paper; the run's mesh "
-              "then only carries the output)", optional=True, range=(0.01, 2.0)),
+              "crossings on a mesh of their own with edges of this length at the exits, "
+              "an eighth of it at the reflex corners (door jambs, pillars; growing by 0.1 m "
+              "per metre within 0.5 m of them), growing by 0.2 m per metre to a third of "
+              "route_kernel (None: on the run's mesh, as the paper; the run's mesh then only "
+              "carries the output)", optional=True, range=(0.01, 2.0)),
     _positive("route_refine", 1.0, "", "every edge of the social force model's route mesh "
-              "divided by this (route_resolution at the exits and corners, the edges along "
+              "divided by this (the edges at the exits and corners, along "
               "the walls and in the open): a check of the route's own discretisation "
               "(docs/validation/route_convergence.md); 1 in every preset",
               range=(1.0, 16.0)),

@@ -24,7 +24,7 @@ __all__ = ["triangulate_building", "piece_segments", "HINGE_PREFIX"]
 #: the name prefix of the mesher's exits that are stair edges (never a real exit's name)
 HINGE_PREFIX = "\u2195hinge:"
 #: rounds of re-meshing until both sides of every stair edge share their vertices
-MAX_STITCH_ROUNDS = 4
+MAX_STITCH_ROUNDS = 8
 
 
 def _edge_len(area: float) -> float:

@@ -144,9 +144,11 @@ def test_an_exit_passes_what_a_door_with_room_beyond_passes(tmp_path):
                                params={"exit_ghosts": ghosts}, t_end=300.0)
         assert res.summary["n_evacuated"] == 96
         flows[name] = _door_flow(res)
-    # measured (seeds 0-3): porch 5.4-5.6, ghosts 6.2-6.4, line 7.8-8.0 /s; on Example 2's
-    # 10 m exit the ghosts meet the porch (benchmarks/exit_ghosts.py), on this 3 m one they
-    # close about three quarters of the gap
+    # measured (seeds 0-3, with the route mesh's corner zone): porch 5.05-5.26, ghosts
+    # 6.24-6.35, line 7.76-8.0 /s, the ghosts closing 56-64 % of the gap on this 3 m exit
+    # (before the corner zone resolved the route at the porch's jambs: porch 5.4-5.6, about
+    # three quarters); on Example 2's 10 m exit they meet the porch
+    # (benchmarks/exit_ghosts.py)
     assert flows["line"] > 1.25 * flows["porch"]
     assert flows["porch"] <= flows["ghosts"]
-    assert flows["line"] - flows["ghosts"] > 0.6 * (flows["line"] - flows["porch"])
+    assert flows["line"] - flows["ghosts"] > 0.5 * (flows["line"] - flows["porch"])
