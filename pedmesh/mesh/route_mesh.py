@@ -81,17 +81,18 @@ def route_size_field(room, resolution: float, open_edge: float,
                      refine: float = 1.0):
     """The route mesh's size field: (p, 2) points [m] -> largest triangle area [m^2], of an
     equilateral triangle with edge ``resolution + growth d`` [m] (``d`` the distance to the
-    nearest exit or reflex corner), at most ``open_edge`` [m]; within :data:`CORNER_ZONE` of
-    a reflex corner at most ``CORNER_EDGE_FRACTION resolution + CORNER_GROWTH d_c`` (``d_c``
-    the distance to the corner; beyond the zone growing on by ``growth``); with
+    nearest exit), at most ``open_edge`` [m]; near a reflex corner at most
+    ``CORNER_EDGE_FRACTION resolution + CORNER_GROWTH d_c`` (``d_c`` the distance to the
+    corner, within :data:`CORNER_ZONE`; beyond the zone growing on by ``growth``); with
     ``wall_edge`` [m] also at most ``wall_edge + WALL_GROWTH d_w`` (``d_w`` the distance to
     the nearest wall or obstacle: a route that keeps a clearance from walls varies there);
     every edge divided by ``refine``."""
     corners = reflex_corners(room)
-    features = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
-    features += list(shapely.points(corners))
-    tree = shapely.STRtree(features)
-    corner_tree = shapely.STRtree(list(shapely.points(corners)))
+    # (the corners' term lies below resolution + growth d_c, as CORNER_EDGE_FRACTION < 1
+    # and growth >= CORNER_GROWTH: the first term need only measure the exits' distance)
+    exit_tree = shapely.STRtree([shapely.LineString(room.exit_polyline(k))
+                                 for k in range(len(room.exits))])
+    corner_tree = shapely.STRtree(shapely.points(corners))
     wall_tree = None
     if wall_edge is not None:
         pieces = shapely.get_parts(shapely.segmentize(room.walkable.boundary,
@@ -101,7 +102,7 @@ def route_size_field(room, resolution: float, open_edge: float,
 
     def size(xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, float).reshape(-1, 2)
-        h = np.minimum(resolution + growth * _nearest_distance(tree, xy), open_edge)
+        h = np.minimum(resolution + growth * _nearest_distance(exit_tree, xy), open_edge)
         if len(corners):
             d = _nearest_distance(corner_tree, xy)
             h = np.minimum(h, h_corner + CORNER_GROWTH * np.minimum(d, CORNER_ZONE)
