@@ -13,7 +13,12 @@ _S = (0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6)
 
 
 def exit_gauss_points(*, mesh, exit: int):
-    """Gauss points (2 per edge), weights [m] and outward normals of an exit's edges."""
+    """Gauss points (2 per edge), weights [m] and outward normals of an exit's edges (kept
+    in the mesh: read-only arrays)."""
+    cache = getattr(mesh, "_cache", None)
+    key = ("exit_gauss_points", int(exit))
+    if isinstance(cache, dict) and key in cache:
+        return cache[key]
     e = mesh.exit_edges(exit)
     p0 = mesh.points[mesh.edges[e, 0]]
     p1 = mesh.points[mesh.edges[e, 1]]
@@ -21,7 +26,30 @@ def exit_gauss_points(*, mesh, exit: int):
     w = np.tile(0.5 * mesh.edge_lengths[e], 2)
     n = np.tile(mesh.edge_normals[e], (2, 1))
     tri = np.tile(mesh.edge_triangles[e, 0], 2)
-    return pts, w, n, tri
+    out = (pts, w, n, tri)
+    for a in out:
+        a.setflags(write=False)
+    if isinstance(cache, dict):
+        cache[key] = out
+    return out
+
+
+def _all_exit_points(mesh):
+    """Every exit's Gauss points, weights and normals concatenated, with the offsets of each
+    exit's share (kept in the mesh)."""
+    cache = getattr(mesh, "_cache", None)
+    if isinstance(cache, dict) and "exit_gauss_all" in cache:
+        return cache["exit_gauss_all"]
+    parts = [exit_gauss_points(mesh=mesh, exit=k) for k in range(len(mesh.exit_names))]
+    counts = [len(p[0]) for p in parts]
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    out = (np.concatenate([p[0] for p in parts]).reshape(-1, 2) if parts else np.zeros((0, 2)),
+           np.concatenate([p[1] for p in parts]) if parts else np.zeros(0),
+           np.concatenate([p[2] for p in parts]).reshape(-1, 2) if parts else np.zeros((0, 2)),
+           offsets)
+    if isinstance(cache, dict):
+        cache["exit_gauss_all"] = out
+    return out
 
 
 def continuum_outflow(*, mesh, rho: np.ndarray, velocity: np.ndarray) -> np.ndarray:
@@ -35,26 +63,32 @@ def continuum_outflow(*, mesh, rho: np.ndarray, velocity: np.ndarray) -> np.ndar
 
 
 def particle_outflow(*, mesh, positions: np.ndarray, velocities: np.ndarray,
-                     R: float = D['R']) -> np.ndarray:
+                     R: float = D['R'], n_exits: int | None = None) -> np.ndarray:
     """Outflow [ped/s] through each exit of a particle crowd, from the kernel density and the
-    kernel-averaged velocity at the exit (the paper's definition for the particle model)."""
-    out = np.zeros(len(mesh.exit_names))
+    kernel-averaged velocity at the exit (the paper's definition for the particle model);
+    with ``n_exits``, through the mesh's first ``n_exits`` exits only (a building's atlas
+    has its stair edges as further exits)."""
+    n_all = len(mesh.exit_names)
+    out = np.zeros(n_all if n_exits is None else min(int(n_exits), n_all))
     pos = np.asarray(positions, float).reshape(-1, 2)
     vel = np.asarray(velocities, float).reshape(-1, 2)
+    pts, w, n, offsets = _all_exit_points(mesh)
+    m = offsets[len(out)]
+    pts, w, n = pts[:m], w[:m], n[:m]
+    if len(pos) == 0 or len(pts) == 0:
+        return out
+    # every exit's points in one neighbour search: each point's neighbours, and the order
+    # they are summed in, are those of a search of its own exit's points
+    row, col, d = _pairs(pos, pts, _DENSITY_CUTOFF * R)
+    kw = _weights(d, R)
+    rho = _density(len(pts), col, kw, R)
+    if D['density_cutoff'] != _DENSITY_CUTOFF:
+        row, col, d = _pairs(pos, pts, D['density_cutoff'] * R)
+        kw = _weights(d, R)
+    u = _velocity(len(pts), row, col, kw, vel)
+    f = w * rho * np.einsum("ij,ij->i", u, n)
     for k in range(len(out)):
-        pts, w, n, _ = exit_gauss_points(mesh=mesh, exit=k)
-        if len(pos) == 0 or len(pts) == 0:
-            rho, u = np.zeros(len(pts)), np.zeros((len(pts), 2))
-        else:  # kernel_density and kernel_velocity at the exit's points, from one
-            # neighbour search and one set of weights where their cut-offs are the same
-            row, col, d = _pairs(pos, pts, _DENSITY_CUTOFF * R)
-            kw = _weights(d, R)
-            rho = _density(len(pts), col, kw, R)
-            if D['density_cutoff'] != _DENSITY_CUTOFF:
-                row, col, d = _pairs(pos, pts, D['density_cutoff'] * R)
-                kw = _weights(d, R)
-            u = _velocity(len(pts), row, col, kw, vel)
-        out[k] = np.sum(w * rho * np.einsum("ij,ij->i", u, n))
+        out[k] = np.sum(f[offsets[k]:offsets[k + 1]])
     return out
 
 

@@ -291,8 +291,10 @@ def _offsets(pieces, group: np.ndarray) -> np.ndarray:
     offset = np.zeros((len(pieces), 2))
     n_groups = int(group.max()) + 1
     members = [np.flatnonzero(group == g) for g in range(n_groups)]
-    regions = [shapely.union_all([shapely.union_all(shapely.polygons(
-        pieces[k].mesh.points[pieces[k].mesh.triangles])) for k in ks]) for ks in members]
+    # (a piece's area from its boundary edges: its triangles' union, built at once)
+    regions = [shapely.union_all([shapely.build_area(shapely.multilinestrings(
+        pieces[k].mesh.points[pieces[k].mesh.edges[pieces[k].mesh.boundary_edges]]))
+        for k in ks]) for ks in members]
     placed = None
     moved = []
     for g, region in enumerate(regions):

@@ -19,7 +19,7 @@ from .surface import Piece, SurfaceMesh
 from .triangle_mesh import BoundaryKind, TriMesh
 from .triangulate import FEATURE_AREA, MAX_AREA, MIN_ANGLE, triangulate
 
-__all__ = ["triangulate_building", "piece_segments", "HINGE_PREFIX"]
+__all__ = ["triangulate_building", "piece_segments", "building_fingerprint", "HINGE_PREFIX"]
 
 #: the name prefix of the mesher's exits that are stair edges (never a real exit's name)
 HINGE_PREFIX = "\u2195hinge:"
@@ -87,6 +87,33 @@ def _params_on(mesh: TriMesh, name: str, a: np.ndarray, b: np.ndarray) -> np.nda
     return np.sort((mesh.points[v] - a) @ ab / (ab @ ab))
 
 
+def building_fingerprint(building) -> str:
+    """SHA-256 (hex) of what a mesh of ``building`` depends on: each level's name, height
+    and room (:func:`~pedmesh.mesh.triangle_mesh.room_fingerprint`) and each stair's name,
+    plan polygon and ends. Crowds, stair speeds and descriptions do not count."""
+    import hashlib
+
+    from .triangle_mesh import room_fingerprint
+
+    cache = getattr(building, "_cache", None)
+    if isinstance(cache, dict) and "mesh_fingerprint" in cache:
+        return cache["mesh_fingerprint"]
+    h = hashlib.sha256()
+    for lv in building.levels:
+        h.update(repr(("level", lv.name, float(lv.z), room_fingerprint(lv.room))).encode())
+    for st in building.stairs:
+        h.update(repr(("stair", st.name, st.bottom.level, st.top.level)).encode())
+        for arr in (st.polygon, st.bottom.edge, st.top.edge):
+            a = np.ascontiguousarray(np.asarray(arr, np.float64))
+            h.update(f"{a.shape}".encode())
+            h.update(a.tobytes())
+    h.update(repr(tuple(building.exit_names)).encode())
+    fp = h.hexdigest()
+    if isinstance(cache, dict):
+        cache["mesh_fingerprint"] = fp
+    return fp
+
+
 def triangulate_building(building, max_area: float = MAX_AREA, min_angle: float = MIN_ANGLE,
                          *, feature_area: float | None = FEATURE_AREA,
                          max_cells: float | None = None,
@@ -105,9 +132,26 @@ def triangulate_building(building, max_area: float = MAX_AREA, min_angle: float 
     charts = {s.name: _StairChart(building, s) for s in building.stairs}
     opts = dict(max_area=max_area, min_angle=min_angle, feature_area=feature_area,
                 max_cells=max_cells, size_of=size_of)
+    # a piece's mesh depends only on its own outline and the splits of its own hinges: a
+    # round meshes again only the pieces one of whose hinges changed (the same input, so
+    # the same mesh as meshing every piece again)
+    levels: list = [None] * len(building.levels)
+    stairs: list = [None] * len(building.stairs)
+    used: dict = {}  # piece -> the splits of its hinges it was meshed with
+
+    def splits(mine) -> tuple:
+        return tuple(hg["s"].tobytes() for hg in mine)
+
     for _ in range(MAX_STITCH_ROUNDS):
-        levels = [_mesh_level(lv, hinges, opts) for lv in building.levels]
-        stairs = [_mesh_stair(s, charts[s.name], hinges, opts) for s in building.stairs]
+        for k, lv in enumerate(building.levels):
+            key = splits([hg for hg in hinges if hg["level"] == lv.name])
+            if used.get(("level", k)) != key:
+                levels[k], used[("level", k)] = _mesh_level(lv, hinges, opts), key
+        for k, st in enumerate(building.stairs):
+            key = splits([hg for hg in hinges if hg["stair"] is st])
+            if used.get(("stair", k)) != key:
+                stairs[k] = _mesh_stair(st, charts[st.name], hinges, opts)
+                used[("stair", k)] = key
         if not _refine_hinges(building, hinges, levels, stairs, charts):
             break
     else:

@@ -35,8 +35,9 @@ import numpy as np
 import shapely
 
 from ..errors import MeshError
-from .triangulate import (MAX_CELLS, MIN_ANGLE, WALL_GROWTH, _edge_to_area, ring_turns,
-                          _nearest_distance, _segments, estimate_cells, triangulate)
+from .triangulate import (MAX_CELLS, MIN_ANGLE, WALL_GROWTH, _boundary_segments,
+                          _edge_to_area, _NearestDistances, _point_segments,
+                          _polyline_segments, estimate_cells, ring_turns, triangulate)
 from .triangle_mesh import room_fingerprint
 
 __all__ = ["route_mesh", "route_size_field", "reflex_corners", "OPEN_EDGE_PER_KERNEL",
@@ -90,25 +91,24 @@ def route_size_field(room, resolution: float, open_edge: float,
     corners = reflex_corners(room)
     # (the corners' term lies below resolution + growth d_c, as CORNER_EDGE_FRACTION < 1
     # and growth >= CORNER_GROWTH: the first term need only measure the exits' distance)
-    exit_tree = shapely.STRtree([shapely.LineString(room.exit_polyline(k))
-                                 for k in range(len(room.exits))])
-    corner_tree = shapely.STRtree(shapely.points(corners))
-    wall_tree = None
-    if wall_edge is not None:
-        pieces = shapely.get_parts(shapely.segmentize(room.walkable.boundary,
-                                                      2.0 * wall_edge / refine))
-        wall_tree = shapely.STRtree([w for ln in pieces for w in _segments(ln)])
     h_corner = CORNER_EDGE_FRACTION * resolution
+    # (remembered by the points' coordinates: each refinement pass asks again for most
+    # centroids of the pass before; the same numbers, so the same mesh)
+    sets = [_polyline_segments([room.exit_polyline(k) for k in range(len(room.exits))]),
+            _point_segments(corners)]
+    if wall_edge is not None:
+        sets.append(_boundary_segments(room, 2.0 * wall_edge / refine))
+    distances = _NearestDistances(sets)
 
     def size(xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, float).reshape(-1, 2)
-        h = np.minimum(resolution + growth * _nearest_distance(exit_tree, xy), open_edge)
+        d = distances(xy)
+        h = np.minimum(resolution + growth * d[0], open_edge)
         if len(corners):
-            d = _nearest_distance(corner_tree, xy)
-            h = np.minimum(h, h_corner + CORNER_GROWTH * np.minimum(d, CORNER_ZONE)
-                           + growth * np.maximum(d - CORNER_ZONE, 0.0))
-        if wall_tree is not None:
-            h = np.minimum(h, wall_edge + WALL_GROWTH * _nearest_distance(wall_tree, xy))
+            h = np.minimum(h, h_corner + CORNER_GROWTH * np.minimum(d[1], CORNER_ZONE)
+                           + growth * np.maximum(d[1] - CORNER_ZONE, 0.0))
+        if wall_edge is not None:
+            h = np.minimum(h, wall_edge + WALL_GROWTH * d[2])
         return _edge_to_area(h / refine)
 
     return size
@@ -139,18 +139,22 @@ def route_mesh(site, *, resolution: float, kernel: float, clearance: float = 0.0
     refine = float(refine)
     from ..geometry.site import is_building
 
-    if is_building(site):  # (not kept: its levels are meshed anew)
-        from .building import triangulate_building
+    building = is_building(site)
+    if building:
+        from .building import building_fingerprint, triangulate_building
 
-        return triangulate_building(
+        fingerprint = building_fingerprint(site)
+    else:
+        fingerprint = room_fingerprint(site)
+    key = (building, fingerprint, float(resolution), float(h_open), h_wall, refine, max_cells)
+    mesh = _cache.get(key)
+    if mesh is None and building:
+        mesh = triangulate_building(
             site, max_area=float(_edge_to_area(h_open / refine)), feature_area=None,
             max_cells=max_cells,
             size_of=lambda room: route_size_field(room, float(resolution), h_open,
                                                   wall_edge=h_wall, refine=refine))
-    key = (room_fingerprint(site), float(resolution), float(h_open), h_wall, refine,
-           max_cells)
-    mesh = _cache.get(key)
-    if mesh is None:
+    elif mesh is None:
         size = route_size_field(site, float(resolution), h_open, wall_edge=h_wall,
                                 refine=refine)
         max_area = float(_edge_to_area(h_open / refine))
@@ -165,11 +169,14 @@ def route_mesh(site, *, resolution: float, kernel: float, clearance: float = 0.0
                 "route_refine (--param NAME=VALUE)")
         mesh = triangulate(site, max_area=max_area, min_angle=MIN_ANGLE, feature_area=None,
                            size=size, max_cells=math.inf)
+    else:
+        _cache.move_to_end(key)
+    if key not in _cache:
         _cache[key] = mesh
         if len(_cache) > _CACHE_SIZE:
             _cache.popitem(last=False)
-    else:
-        _cache.move_to_end(key)
+    if building:  # the same levels and stairs: this building's crowd
+        return mesh if mesh.building is site else dataclasses.replace(mesh, building=site)
     if mesh.room is not site:  # the same walls and exits: this room's crowd
         mesh = dataclasses.replace(mesh, room=site)
     return mesh

@@ -305,11 +305,17 @@ class TriMesh:
         return np.where(keys[pos] == q, pos, -1)
 
     def exit_edges(self, k: int | None = None) -> np.ndarray:
-        """Indices of the edges of exit ``k`` (all exits if ``None``)."""
-        sel = self.edge_kind == BoundaryKind.EXIT
-        if k is not None:
-            sel &= self.edge_owner == k
-        return np.flatnonzero(sel)
+        """Indices of the edges of exit ``k`` (all exits if ``None``; read-only, kept)."""
+        key = ("exit_edges", None if k is None else int(k))
+        out = self._cache.get(key)
+        if out is None:
+            sel = self.edge_kind == BoundaryKind.EXIT
+            if k is not None:
+                sel &= self.edge_owner == k
+            out = np.flatnonzero(sel)
+            out.setflags(write=False)
+            self._cache[key] = out
+        return out
 
     def wall_edges(self) -> np.ndarray:
         """Indices of the solid boundary edges (outer walls and obstacles)."""

@@ -138,13 +138,24 @@ def _corners(room, min_turn: float = CORNER_TURN) -> np.ndarray:
     return np.concatenate(out) if out else np.zeros((0, 2))
 
 
-def _nearest_distance(tree, xy: np.ndarray) -> np.ndarray:
-    """Distance [m] from each point (p, 2) to the nearest geometry of an STR tree (inf for
-    an empty tree)."""
-    if len(tree) == 0:
-        return np.full(len(xy), np.inf)
-    (_, _), d = tree.query_nearest(shapely.points(xy), return_distance=True, all_matches=False)
-    return d
+def _polyline_segments(lines) -> np.ndarray:
+    """(s, 2, 2) [m] the straight pieces of some polylines ((k, 2) vertex arrays)."""
+    out = [np.stack([c[:-1], c[1:]], axis=1)
+           for c in (np.asarray(ln, float).reshape(-1, 2) for ln in lines) if len(c) > 1]
+    return np.concatenate(out) if out else np.zeros((0, 2, 2))
+
+
+def _point_segments(points) -> np.ndarray:
+    """(c, 2, 2) [m] points as segments of length zero."""
+    c = np.asarray(points, float).reshape(-1, 2)
+    return np.stack([c, c], axis=1)
+
+
+def _boundary_segments(room, piece: float) -> np.ndarray:
+    """(s, 2, 2) [m] the walkable area's boundary (walls, obstacles and exits) cut into
+    pieces of at most ``piece`` [m]."""
+    parts = shapely.get_parts(shapely.segmentize(room.walkable.boundary, piece))
+    return _polyline_segments([np.asarray(ln.coords) for ln in parts])
 
 
 #: a point's exact coordinates (two float64) as one sortable key
@@ -152,18 +163,21 @@ _POINT_KEY = np.dtype((np.void, 16))
 
 
 class _NearestDistances:
-    """The distances [m] from points to the nearest geometry of each STR tree of ``trees``
-    (:func:`_nearest_distance`), remembered by the points' exact coordinates: the mesh
-    refinement asks for the centroids of every triangle at each pass, and most triangles
-    are those of the pass before (on Example 2 three quarters of the points asked for);
-    a point asked for again gets the number computed for the same coordinates before,
-    which is the number the tree would give again (each point's nearest distance is its
-    own, whatever the other points of the call), so the mesh is the same, bit for bit."""
+    """The distances [m] from points to the nearest segment of each set of ``segments``
+    (each (s, 2, 2) [m]; :class:`~pedmesh.mesh.distance.SegmentDistance`), remembered by
+    the points' exact coordinates: the mesh refinement asks for the centroids of every
+    triangle at each pass, and most triangles are those of the pass before (on Example 2
+    three quarters of the points asked for); a point asked for again gets the number
+    computed for the same coordinates before, which is the number the search would give
+    again (each point's nearest distance is its own, whatever the other points of the
+    call), so the mesh is the same, bit for bit."""
 
-    def __init__(self, trees) -> None:
-        self.trees = trees
+    def __init__(self, segments) -> None:
+        from .distance import SegmentDistance
+
+        self.trees = [SegmentDistance(s) for s in segments]
         self.keys = np.zeros(0, _POINT_KEY)  # sorted
-        self.values = np.zeros((len(trees), 0))
+        self.values = np.zeros((len(self.trees), 0))
 
     def __call__(self, xy: np.ndarray) -> np.ndarray:
         """(len(trees), p) distances of the points ``xy`` (p, 2)."""
@@ -177,7 +191,7 @@ class _NearestDistances:
         out[:, hit] = self.values[:, pos[hit]]
         new = np.flatnonzero(~hit)
         if len(new):
-            d = np.stack([_nearest_distance(tree, xy[new]) for tree in self.trees])
+            d = np.stack([tree(xy[new]) for tree in self.trees])
             out[:, new] = d
             known, first = np.unique(keys[new], return_index=True)
             keys_all = np.concatenate([self.keys, known])
@@ -206,11 +220,10 @@ def feature_size_field(room, feature_area: float = FEATURE_AREA,
         if not (_is_real(v) and math.isfinite(v) and v >= 0):
             raise MeshError(f"{name} must be a number >= 0 [m/m], got {v!r}")
     h0 = math.sqrt(4.0 * feature_area / math.sqrt(3.0))
-    features = [shapely.LineString(room.exit_polyline(k)) for k in range(len(room.exits))]
-    features += list(shapely.points(_corners(room)))
-    walls = list(shapely.get_parts(shapely.segmentize(room.walkable.boundary, 2.0 * h0)))
-    walls = [w for ln in walls for w in _segments(ln)]
-    distances = _NearestDistances((shapely.STRtree(features), shapely.STRtree(walls)))
+    features = np.concatenate([
+        _polyline_segments([room.exit_polyline(k) for k in range(len(room.exits))]),
+        _point_segments(_corners(room))])
+    distances = _NearestDistances((features, _boundary_segments(room, 2.0 * h0)))
 
     def size(xy: np.ndarray) -> np.ndarray:
         d_feature, d_wall = distances(np.asarray(xy, float).reshape(-1, 2))
@@ -218,12 +231,6 @@ def feature_size_field(room, feature_area: float = FEATURE_AREA,
         return _edge_to_area(h)
 
     return size
-
-
-def _segments(line) -> list:
-    """The straight pieces of a line string, as line strings (tree entries)."""
-    c = np.asarray(line.coords)
-    return list(shapely.linestrings(np.stack([c[:-1], c[1:]], axis=1)))
 
 
 def size_fields(room, *, feature_area: float | None = FEATURE_AREA,

@@ -19,6 +19,7 @@ from pedmesh.analysis import (
     evacuation_times,
     kernel_density,
     kernel_velocity,
+    exit_gauss_points,
     particle_outflow,
     reference_flow,
 )
@@ -72,6 +73,28 @@ def test_uniform_stream_outflow_particles(door_mesh):
     times = np.arange(0, 100, 0.125)
     r = crossing_rate(exit_times=times, t=np.array([20.0, 50.0]), window=4.0)
     np.testing.assert_allclose(r, 8.0)
+
+
+def test_outflow_of_several_exits_is_each_exits_own():
+    """particle_outflow measures all exits in one neighbour search: each exit's flow is,
+    to the bit, the kernel density and kernel velocity at that exit's own Gauss points
+    (their neighbours and their order are those of a search of those points alone), and
+    ``n_exits`` keeps the first exits only."""
+    exits = [Exit("east", [(10, 2), (10, 6)]), Exit("north", [(3, 8), (1, 8)]),
+             Exit("south", [(4, 0), (7, 0)])]
+    mesh = triangulate(Room([(0, 0), (10, 0), (10, 8), (0, 8)], exits=exits), max_area=0.2)
+    rng = np.random.default_rng(4)
+    pos = rng.uniform((0.2, 0.2), (9.8, 7.8), (400, 2))
+    vel = rng.normal(0.0, 1.0, (400, 2))
+    f = particle_outflow(mesh=mesh, positions=pos, velocities=vel)
+    assert np.all(f != 0.0)
+    for k in range(len(exits)):
+        pts, w, n, _ = exit_gauss_points(mesh=mesh, exit=k)
+        rho = kernel_density(positions=pos, points=pts)
+        u = kernel_velocity(positions=pos, velocities=vel, points=pts)
+        assert np.sum(w * rho * np.einsum("ij,ij->i", u, n)) == f[k]
+    np.testing.assert_array_equal(
+        particle_outflow(mesh=mesh, positions=pos, velocities=vel, n_exits=2), f[:2])
 
 
 @pytest.mark.parametrize("spread", [0.3, 3.0, 30.0])

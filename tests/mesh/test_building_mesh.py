@@ -97,3 +97,37 @@ def test_obstacles_are_numbered_once_each(tmp_path):
     g = build_atlas(s).glued
     assert g.obstacle_names == ("ground/pillar",)
     assert set(g.edge_owner[g.edge_kind == BoundaryKind.OBSTACLE]) == {0}
+
+
+def test_a_buildings_route_mesh_is_reused_for_another_crowd(tmp_path):
+    """The route mesh of a building is kept like a room's (a fit or an ensemble builds it
+    many times): the same levels and stairs with another crowd get the same mesh, carrying
+    their own building; a stair moved gets a mesh of its own."""
+    from pedmesh.mesh.building import building_fingerprint
+    from pedmesh.mesh.route_mesh import route_mesh
+
+    def load(spec: dict, name: str):
+        p = tmp_path / f"{name}.json"
+        p.write_text(json.dumps(spec))
+        return pedmesh.load_room(p)
+
+    b1 = load(TWO, "a")
+    crowd = json.loads(json.dumps(TWO))
+    crowd["levels"][0]["start_areas"][0]["spacing"] = 0.7  # another crowd, same walls
+    b2 = load(crowd, "b")
+    moved = json.loads(json.dumps(TWO))
+    moved["stairs"][0]["top"]["edge"] = [[12, 8.5], [12, 10]]
+    moved["levels"][1]["outline"] = [[0, 0], [20, 0], [20, 10], [12, 10], [12, 8.5],
+                                     [8, 8.5], [8, 10], [0, 10]]
+    moved["stairs"][0]["polygon"] = [[8, 8.5], [12, 8.5], [12, 10], [8, 10]]
+    moved["stairs"][0]["bottom"]["edge"] = [[8, 8.5], [8, 10]]
+    b3 = load(moved, "c")
+    assert building_fingerprint(b1) == building_fingerprint(b2) != building_fingerprint(b3)
+    m1 = route_mesh(b1, resolution=0.2, kernel=2.0)
+    m2 = route_mesh(b2, resolution=0.2, kernel=2.0)
+    assert m1.building is b1 and m2.building is b2
+    assert m2.points is m1.points  # (not meshed again)
+    m3 = route_mesh(b3, resolution=0.2, kernel=2.0)
+    assert m3.building is b3
+    assert math.isclose(m1.area, b1.area, rel_tol=1e-12)
+    assert math.isclose(m3.area, b3.area, rel_tol=1e-12) and m3.area < m1.area - 0.4

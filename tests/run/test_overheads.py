@@ -140,20 +140,34 @@ def test_the_state_before_a_step_is_kept_also_while_everyone_waits():
     assert waited >= 1 and walked >= 3
 
 
-def test_remembered_distances_are_the_trees_own():
-    from pedmesh.mesh.triangulate import _NearestDistances, _nearest_distance
+def test_remembered_distances_are_the_searchs_own():
+    from pedmesh.mesh.distance import SegmentDistance
+    from pedmesh.mesh.triangulate import _NearestDistances
 
     rng = np.random.default_rng(4)
-    segs = shapely.linestrings(rng.uniform(0, 50, (40, 2, 2)))
-    trees = (shapely.STRtree(segs), shapely.STRtree(shapely.points(rng.uniform(0, 50, (7, 2)))),
-             shapely.STRtree([]))
-    memo = _NearestDistances(trees)
+    corners = rng.uniform(0, 50, (7, 2))
+    sets = (rng.uniform(0, 50, (40, 2, 2)), np.stack([corners, corners], axis=1),
+            np.zeros((0, 2, 2)))
+    memo = _NearestDistances(sets)
     a = rng.uniform(-5, 55, (300, 2))
     b = np.concatenate([a[100:250], rng.uniform(-5, 55, (200, 2)), a[:10], [[0.0, -0.0]]])
     for xy in (a, b, b[::-1], a[:0]):
         got = memo(xy)
-        want = np.stack([_nearest_distance(t, xy) for t in trees])
+        want = np.stack([SegmentDistance(s)(xy) for s in sets])
         assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def _geos_distance(seg: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """The distance from the points ``xy`` to the nearest of the segments ``seg`` ((s, 4))
+    by GEOS's nearest search on an STR tree (inf for none)."""
+    seg = seg.reshape(-1, 2, 2)
+    if len(seg) == 0:
+        return np.full(len(xy), np.inf)
+    geoms = [shapely.Point(g[0]) if np.array_equal(g[0], g[1]) else shapely.LineString(g)
+             for g in seg]
+    (_, _), d = shapely.STRtree(geoms).query_nearest(
+        shapely.points(xy), return_distance=True, all_matches=False)
+    return d
 
 
 @pytest.mark.parametrize("name, options", [("example2.json", {}),
@@ -167,12 +181,35 @@ def test_the_mesh_is_that_of_distances_computed_afresh(load_shipped, monkeypatch
     room = load_shipped(name)
     m = T.triangulate(room, **options)
 
-    class Afresh(T._NearestDistances):
+    class Afresh(T._NearestDistances):  # (and by GEOS, not the compiled search)
         def __call__(self, xy):
             xy = np.asarray(xy, float).reshape(-1, 2)
-            return np.stack([T._nearest_distance(t, xy) for t in self.trees])
+            return np.stack([_geos_distance(t.seg, xy) for t in self.trees])
 
     monkeypatch.setattr(T, "_NearestDistances", Afresh)
     ref = T.triangulate(room, **options)
     assert np.array_equal(m.points, ref.points) and np.array_equal(m.triangles, ref.triangles)
     assert np.array_equal(m.segments, ref.segments)
+
+
+def test_the_route_mesh_is_that_of_geos_distances(load_shipped, monkeypatch):
+    """The route mesh (exits, reflex corners and walls in its size field) graded by the
+    compiled distances is the one GEOS's nearest search grades, to the bit."""
+    from collections import OrderedDict
+
+    import pedmesh.mesh.route_mesh as RM
+
+    room = load_shipped("pillar_hall.json")
+    monkeypatch.setattr(RM, "_cache", OrderedDict())
+    m = RM.route_mesh(room, resolution=0.3, kernel=2.0, clearance=0.5)
+
+    class Geos(RM._NearestDistances):
+        def __call__(self, xy):
+            xy = np.asarray(xy, float).reshape(-1, 2)
+            return np.stack([_geos_distance(t.seg, xy) for t in self.trees])
+
+    monkeypatch.setattr(RM, "_NearestDistances", Geos)
+    monkeypatch.setattr(RM, "_cache", OrderedDict())
+    ref = RM.route_mesh(room, resolution=0.3, kernel=2.0, clearance=0.5)
+    assert ref is not m and len(RM.reflex_corners(room)) > 0
+    assert np.array_equal(m.points, ref.points) and np.array_equal(m.triangles, ref.triangles)

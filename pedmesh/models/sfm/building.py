@@ -488,9 +488,9 @@ class BuildingSFMRun(SFMRun):
 
         if positions is None:
             positions, velocities = self.sim.positions, self.sim.velocities
-        f = particle_outflow(mesh=self.atlas.open, positions=positions,
-                             velocities=velocities, R=self.params.R)
-        return np.asarray(f)[: len(self.mesh.exit_names)]
+        return particle_outflow(mesh=self.atlas.open, positions=positions,
+                                velocities=velocities, R=self.params.R,
+                                n_exits=len(self.mesh.exit_names))
 
     def _trajectory_rows(self, left: np.ndarray):
         sim = self.sim

@@ -368,10 +368,12 @@ class Simulation:
 
             if mesh.room is not None:
                 walkable = mesh.room.walkable
-            else:  # a bare mesh: its triangles' union is the walkable area
+            else:  # a bare mesh: the area its boundary edges enclose (the triangles'
+                # union, built from the boundary alone)
                 import shapely
 
-                walkable = shapely.union_all(shapely.polygons(mesh.points[mesh.triangles]))
+                walkable = shapely.build_area(shapely.multilinestrings(
+                    mesh.points[mesh.edges[mesh.boundary_edges]]))
             self.width_map = width_map(walkable)
             wm = self.width_map
             self._wmap = wm.width

@@ -217,14 +217,11 @@ def clearance_factor(mesh: TriMesh, clearance: float) -> np.ndarray:
     ``clearance`` of the nearest wall or obstacle edge (``d`` [m] the distance to it), 1
     beyond; exits do not count. The factor is a smooth bump of width ``clearance``, which the
     route mesh resolves (:mod:`pedmesh.mesh.route_mesh` grades it along the walls)."""
-    import shapely
-
-    from ...mesh.triangulate import _nearest_distance
+    from ...mesh.distance import SegmentDistance
 
     walls = mesh.edges[mesh.wall_edges()]
     if len(walls) == 0:
         return np.ones(mesh.n_points)
-    d = _nearest_distance(shapely.STRtree(shapely.linestrings(mesh.points[walls])),
-                          mesh.points)
+    d = SegmentDistance(mesh.points[walls])(mesh.points)
     s = np.clip(1.0 - np.asarray(d, float) / float(clearance), 0.0, 1.0)
     return 1.0 + ROUTE_WALL_COST * s * s
