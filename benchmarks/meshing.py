@@ -5,7 +5,8 @@ Every social force run under ``validated`` builds a route mesh (pedmesh.mesh.rou
 whose size field asks for the distance to the nearest exit, reflex corner and wall at each
 triangle's centroid in every refinement pass. The two variants give the same meshes, bit
 for bit (checked here and in tests/run/test_overheads.py); the A/B repeats are interleaved
-and the ratio is of medians.
+and the ratio is of medians. Both remember the distances of points asked for again (the
+refinement asks again for most centroids of the pass before).
 
     python benchmarks/meshing.py [--repeats 3] [--json docs/data/meshing.json]
 """
@@ -32,30 +33,30 @@ SITES = ("experiments/uo-100-180-180.json", "pillar_hall.json", "office.json",
          "venue_10k.json")
 
 
+class _GeosSearch:
+    """The distance to the nearest of some segments by GEOS (shapely's STR tree), as the
+    size fields measured it before the compiled search."""
+
+    def __init__(self, seg: np.ndarray) -> None:
+        self.seg = seg
+        geoms = [shapely.Point(g[0]) if np.array_equal(g[0], g[1]) else shapely.LineString(g)
+                 for g in seg.reshape(-1, 2, 2)]
+        self.tree = shapely.STRtree(geoms)
+
+    def __call__(self, xy: np.ndarray) -> np.ndarray:
+        if len(self.tree) == 0:
+            return np.full(len(xy), np.inf)
+        (_, _), d = self.tree.query_nearest(shapely.points(xy), return_distance=True,
+                                            all_matches=False)
+        return d
+
+
 class _Geos(RM._NearestDistances):
-    """The size field's distances by GEOS (shapely's STR tree), as before the compiled
-    search."""
+    """The size field's distances (remembered by the points as ever) by GEOS."""
 
     def __init__(self, segments) -> None:
         super().__init__(segments)
-        self.geos = []
-        for t in self.trees:
-            seg = t.seg.reshape(-1, 2, 2)
-            geoms = [shapely.Point(g[0]) if np.array_equal(g[0], g[1])
-                     else shapely.LineString(g) for g in seg]
-            self.geos.append(shapely.STRtree(geoms))
-
-    def __call__(self, xy):
-        xy = np.asarray(xy, float).reshape(-1, 2)
-        out = []
-        for tree in self.geos:
-            if len(tree) == 0:
-                out.append(np.full(len(xy), np.inf))
-                continue
-            (_, _), d = tree.query_nearest(shapely.points(xy), return_distance=True,
-                                           all_matches=False)
-            out.append(d)
-        return np.stack(out)
+        self.trees = [_GeosSearch(t.seg) for t in self.trees]
 
 
 def _build(site, variant: str):

@@ -419,6 +419,27 @@ def exit_ghosts(path: Path = DATA / "exit_ghosts.json") -> str:
     return "\n".join(lines)
 
 
+def meshing(path: Path = DATA / "meshing.json") -> str:
+    """The route mesh's build time with compiled distances against GEOS's nearest search
+    (``benchmarks/meshing.py``)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    rows = []
+    for name, r in res["sites"].items():
+        rows.append([f"`{name}`", f"{r['triangles']:,}", f"{r['compiled_median_s']:.2f}",
+                     f"{r['compiled_best_s']:.2f}", f"{r['geos_median_s']:.2f}",
+                     f"{r['geos_best_s']:.2f}", f"{r['speed_up']:.1f}",
+                     "yes" if r["same_mesh"] else "**no**"])
+    lines = [f"The route mesh of `validated` (route_resolution {res['resolution_m']:g} m, "
+             f"route_kernel {res['kernel_m']:g} m, route_clearance {res['clearance_m']:g} m), "
+             f"built {res['repeats']} times each way, interleaved; *same mesh*: every build "
+             "gave the same points and triangles, bit for bit.", ""]
+    lines += _table(["geometry", "triangles", "compiled median [s]", "best", "GEOS median [s]",
+                     "best", "GEOS / compiled", "same mesh"], rows, "l")
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
@@ -429,7 +450,8 @@ SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_converged_ab.md": converged_ab,
             "figures_startup.md": startup,
             "figures_building_steps.md": building_steps,
-            "figures_exit_ghosts.md": exit_ghosts}
+            "figures_exit_ghosts.md": exit_ghosts,
+            "figures_meshing.md": meshing}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

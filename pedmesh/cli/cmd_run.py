@@ -149,6 +149,10 @@ def run(args: argparse.Namespace) -> int:
     from ..run.driver import check_crowd
 
     overrides = parse_overrides(args.param)
+    # (before meshing, which compiles the meshers' own kernels on a fresh install)
+    notice = compile_notice(entry.scale == "particles")
+    if notice and not args.quiet:
+        print(notice, file=sys.stderr, flush=True)
     room, mesh = mesh_from_args(args, buildings=True,
                                 check=lambda r: check_crowd(r, args.max_people))
     out = Path(args.out) if args.out else Path("runs") / f"{Path(args.geometry).stem}-{name}"
@@ -168,9 +172,6 @@ def run(args: argparse.Namespace) -> int:
         if "trajectory_rate" not in entry.options:
             raise ParameterError(f"--trajectory-rate does not apply to model '{name}'")
         model_options["trajectory_rate"] = args.trajectory_rate
-    notice = compile_notice(entry.scale == "particles")
-    if notice and not args.quiet:
-        print(notice, file=sys.stderr, flush=True)
     try:
         with stop_on_signals():  # Ctrl-C / SIGTERM: stop after the current step
             s = run_model(room, mesh, name, overrides=overrides, t_end=args.t_end, out_dir=out,

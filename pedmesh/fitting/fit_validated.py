@@ -24,6 +24,11 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
     because its route is not converged within 3 % in ``route_resolution`` at a 0.8 m door
     (nor, less, the shipped point's: door_physics.md).
 
+``--law corner`` (issue 44, under way): ``--law refit``'s model on the route mesh with its
+    corner zone (the route converges at doors; docs/validation/route_convergence.md), where
+    the shipped point passes too few through narrow entrances as doors (uo-100 -13 %).
+    Nelder-Mead from the shipped point (``fit_evaluations_corner.csv``, which resumes).
+
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
     fitted with the doors in a thin wall among the targets (``LAWS["converged"]``).
@@ -303,6 +308,16 @@ LAWS["cone1"] = {
     "csv": "fit_evaluations_cone1.csv",
     "note": ("Nelder-Mead from the point of `--law exits` with the density cone of exponent "
              "1 (`density_cone=1`) instead of 2 (docs/validation/door_physics.md)."),
+}
+# issue 44, corner: the refit's model on the route mesh with its corner zone (edges of an
+# eighth of route_resolution at reflex corners: the route converges at doors), where the
+# shipped point's entrances as doors pass too few (uo-100 -13 %); Nelder-Mead from it
+LAWS["corner"] = {
+    **LAWS["refit"],
+    "csv": "fit_evaluations_corner.csv",
+    "note": ("Nelder-Mead from the point of `--law exits` (the shipped point) on the route "
+             "mesh with its corner zone (`pedmesh.mesh.route_mesh.CORNER_EDGE_FRACTION`), "
+             "with which the route converges at doors."),
 }
 #: [ped/m^2] where the table law reaches 0
 TABLE_ZERO = 5.6
