@@ -17,7 +17,6 @@ import argparse
 import hashlib
 import sys
 import time
-from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -104,7 +103,6 @@ def main() -> None:
     if a.json:
         write_json(a.json, {"repeats": a.repeats, "resolution_m": 0.1, "kernel_m": 2.0,
                             "clearance_m": 0.5, "sites": rows})
-    RM._cache = OrderedDict()
 
 
 if __name__ == "__main__":

@@ -12,44 +12,46 @@ __all__ = ["exit_gauss_points", "continuum_outflow", "particle_outflow", "crossi
 _S = (0.5 - np.sqrt(3) / 6, 0.5 + np.sqrt(3) / 6)
 
 
+def _kept(mesh, key, make):
+    """``make()``, kept in the mesh's cache under ``key`` (a mesh without one: made anew)."""
+    cache = getattr(mesh, "_cache", None)
+    if not isinstance(cache, dict):
+        return make()
+    if key not in cache:
+        cache[key] = make()
+    return cache[key]
+
+
 def exit_gauss_points(*, mesh, exit: int):
     """Gauss points (2 per edge), weights [m] and outward normals of an exit's edges (kept
     in the mesh: read-only arrays)."""
-    cache = getattr(mesh, "_cache", None)
-    key = ("exit_gauss_points", int(exit))
-    if isinstance(cache, dict) and key in cache:
-        return cache[key]
-    e = mesh.exit_edges(exit)
-    p0 = mesh.points[mesh.edges[e, 0]]
-    p1 = mesh.points[mesh.edges[e, 1]]
-    pts = np.concatenate([p0 + s * (p1 - p0) for s in _S])
-    w = np.tile(0.5 * mesh.edge_lengths[e], 2)
-    n = np.tile(mesh.edge_normals[e], (2, 1))
-    tri = np.tile(mesh.edge_triangles[e, 0], 2)
-    out = (pts, w, n, tri)
-    for a in out:
-        a.setflags(write=False)
-    if isinstance(cache, dict):
-        cache[key] = out
-    return out
+
+    def make():
+        e = mesh.exit_edges(exit)
+        p0 = mesh.points[mesh.edges[e, 0]]
+        p1 = mesh.points[mesh.edges[e, 1]]
+        out = (np.concatenate([p0 + s * (p1 - p0) for s in _S]),
+               np.tile(0.5 * mesh.edge_lengths[e], 2), np.tile(mesh.edge_normals[e], (2, 1)),
+               np.tile(mesh.edge_triangles[e, 0], 2))
+        for a in out:
+            a.setflags(write=False)
+        return out
+
+    return _kept(mesh, ("exit_gauss_points", int(exit)), make)
 
 
 def _all_exit_points(mesh):
     """Every exit's Gauss points, weights and normals concatenated, with the offsets of each
     exit's share (kept in the mesh)."""
-    cache = getattr(mesh, "_cache", None)
-    if isinstance(cache, dict) and "exit_gauss_all" in cache:
-        return cache["exit_gauss_all"]
-    parts = [exit_gauss_points(mesh=mesh, exit=k) for k in range(len(mesh.exit_names))]
-    counts = [len(p[0]) for p in parts]
-    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    out = (np.concatenate([p[0] for p in parts]).reshape(-1, 2) if parts else np.zeros((0, 2)),
-           np.concatenate([p[1] for p in parts]) if parts else np.zeros(0),
-           np.concatenate([p[2] for p in parts]).reshape(-1, 2) if parts else np.zeros((0, 2)),
-           offsets)
-    if isinstance(cache, dict):
-        cache["exit_gauss_all"] = out
-    return out
+
+    def make():
+        parts = [exit_gauss_points(mesh=mesh, exit=k) for k in range(len(mesh.exit_names))]
+        offsets = np.cumsum([0] + [len(p[1]) for p in parts]).astype(np.int64)
+        return (np.concatenate([np.zeros((0, 2))] + [p[0] for p in parts]),
+                np.concatenate([np.zeros(0)] + [p[1] for p in parts]),
+                np.concatenate([np.zeros((0, 2))] + [p[2] for p in parts]), offsets)
+
+    return _kept(mesh, "exit_gauss_all", make)
 
 
 def continuum_outflow(*, mesh, rho: np.ndarray, velocity: np.ndarray) -> np.ndarray:

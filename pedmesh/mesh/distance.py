@@ -19,7 +19,8 @@ import numpy as np
 
 __all__ = ["SegmentDistance"]
 
-#: up to this many segments every point is measured against every segment (no grid)
+#: up to this many segments every point is measured against every segment (a grid of one
+#: cell)
 BRUTE_MAX = 48
 #: grid cells per segment (the grid's cell is the side of bounding box area / (this * s))
 CELLS_PER_SEGMENT = 1.0
@@ -43,17 +44,6 @@ def _point_segment(px, py, ax, ay, bx, by):
         return math.sqrt(dx * dx + dy * dy)
     s = ((ay - py) * (bx - ax) - (ax - px) * (by - ay)) / len2
     return abs(s) * math.sqrt(len2)
-
-
-@nb.njit(cache=True, parallel=True)
-def _brute(p, seg, out):
-    for i in nb.prange(len(p)):
-        best = np.inf
-        for j in range(len(seg)):
-            d = _point_segment(p[i, 0], p[i, 1], seg[j, 0], seg[j, 1], seg[j, 2], seg[j, 3])
-            if d < best:
-                best = d
-        out[i] = best
 
 
 @nb.njit(cache=True, inline="always")
@@ -106,11 +96,9 @@ class SegmentDistance:
     for (p, 2) points, inf when there are no segments."""
 
     def __init__(self, segments) -> None:
-        seg = np.ascontiguousarray(np.asarray(segments, np.float64).reshape(-1, 4))
-        self.seg = seg
-        self.grid = None
-        if len(seg) > BRUTE_MAX:
-            self.grid = self._bin(seg)
+        self.seg = np.ascontiguousarray(np.asarray(segments, np.float64).reshape(-1, 4))
+        #: (x0, y0, cell, nx, ny, start, items) of the grid of the segments' boxes
+        self.grid = self._bin(self.seg) if len(self.seg) else None
 
     def __len__(self) -> int:
         return len(self.seg)
@@ -121,11 +109,15 @@ class SegmentDistance:
         hi = np.maximum(seg[:, :2], seg[:, 2:])
         x0, y0 = lo.min(axis=0)
         x1, y1 = hi.max(axis=0)
-        area = max((x1 - x0) * (y1 - y0), 1e-12)
-        cell = max(math.sqrt(area / (CELLS_PER_SEGMENT * len(seg))), 1e-6,
-                   max(x1 - x0, y1 - y0) / 4096.0)
-        nx = int((x1 - x0) // cell) + 1
-        ny = int((y1 - y0) // cell) + 1
+        if len(seg) <= BRUTE_MAX:  # one cell: every segment for every point
+            cell = max(x1 - x0, y1 - y0, 1e-6)
+            nx = ny = 1
+        else:
+            area = max((x1 - x0) * (y1 - y0), 1e-12)
+            cell = max(math.sqrt(area / (CELLS_PER_SEGMENT * len(seg))), 1e-6,
+                       max(x1 - x0, y1 - y0) / 4096.0)
+            nx = int((x1 - x0) // cell) + 1
+            ny = int((y1 - y0) // cell) + 1
         i0 = np.clip(((lo[:, 0] - x0) // cell).astype(np.int64), 0, nx - 1)
         i1 = np.clip(((hi[:, 0] - x0) // cell).astype(np.int64), 0, nx - 1)
         j0 = np.clip(((lo[:, 1] - y0) // cell).astype(np.int64), 0, ny - 1)
@@ -145,10 +137,8 @@ class SegmentDistance:
     def __call__(self, xy) -> np.ndarray:
         p = np.ascontiguousarray(np.asarray(xy, np.float64).reshape(-1, 2))
         out = np.empty(len(p))
-        if len(self.seg) == 0:
+        if self.grid is None:
             out.fill(np.inf)
-        elif self.grid is None:
-            _brute(p, self.seg, out)
         else:
             _gridded(p, self.seg, *self.grid, out)
         return out

@@ -11,13 +11,7 @@ import shapely
 
 from pedmesh.mesh.distance import BRUTE_MAX, SegmentDistance
 
-
-def _geos(segments: np.ndarray, points: np.ndarray) -> np.ndarray:
-    geoms = [shapely.Point(s[0]) if np.array_equal(s[0], s[1]) else shapely.LineString(s)
-             for s in segments]
-    (_, _), d = shapely.STRtree(geoms).query_nearest(
-        shapely.points(points), return_distance=True, all_matches=False)
-    return d
+from geos_reference import geos_distance as _geos  # (tests/geos_reference.py)
 
 
 @pytest.mark.parametrize("n", [1, 7, BRUTE_MAX + 1, 400, 3000])
@@ -32,7 +26,8 @@ def test_the_distance_is_geos_to_the_bit(n):
                           seg[:, 0], seg[:, 1], 0.5 * (seg[:, 0] + seg[:, 1]),
                           np.round(rng.uniform(0.0, 30.0, (5_000, 2)), 1)])
     d = SegmentDistance(seg)(pts)
-    assert (SegmentDistance(seg).grid is None) == (n <= BRUTE_MAX)
+    nx, ny = SegmentDistance(seg).grid[3:5]
+    assert (nx * ny == 1) == (n <= BRUTE_MAX)  # (all segments in one cell: brute force)
     np.testing.assert_array_equal(d, _geos(seg, pts))
 
 

@@ -9,7 +9,6 @@ import json
 
 import numpy as np
 import pytest
-import shapely
 
 from pedmesh import Room
 from pedmesh.cli import main
@@ -157,17 +156,18 @@ def test_remembered_distances_are_the_searchs_own():
         assert got.shape == want.shape and np.array_equal(got, want)
 
 
-def _geos_distance(seg: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """The distance from the points ``xy`` to the nearest of the segments ``seg`` ((s, 4))
-    by GEOS's nearest search on an STR tree (inf for none)."""
-    seg = seg.reshape(-1, 2, 2)
-    if len(seg) == 0:
-        return np.full(len(xy), np.inf)
-    geoms = [shapely.Point(g[0]) if np.array_equal(g[0], g[1]) else shapely.LineString(g)
-             for g in seg]
-    (_, _), d = shapely.STRtree(geoms).query_nearest(
-        shapely.points(xy), return_distance=True, all_matches=False)
-    return d
+def _geos_distances():
+    """A size field's remembered distances, by GEOS instead of the compiled search."""
+    from pedmesh.mesh.triangulate import _NearestDistances
+
+    from geos_reference import geos_distance  # (tests/geos_reference.py)
+
+    class Geos(_NearestDistances):
+        def __call__(self, xy):
+            xy = np.asarray(xy, float).reshape(-1, 2)
+            return np.stack([geos_distance(t.seg, xy) for t in self.trees])
+
+    return Geos
 
 
 @pytest.mark.parametrize("name, options", [("example2.json", {}),
@@ -181,12 +181,8 @@ def test_the_mesh_is_that_of_distances_computed_afresh(load_shipped, monkeypatch
     room = load_shipped(name)
     m = T.triangulate(room, **options)
 
-    class Afresh(T._NearestDistances):  # (and by GEOS, not the compiled search)
-        def __call__(self, xy):
-            xy = np.asarray(xy, float).reshape(-1, 2)
-            return np.stack([_geos_distance(t.seg, xy) for t in self.trees])
-
-    monkeypatch.setattr(T, "_NearestDistances", Afresh)
+    # (and by GEOS, not the compiled search)
+    monkeypatch.setattr(T, "_NearestDistances", _geos_distances())
     ref = T.triangulate(room, **options)
     assert np.array_equal(m.points, ref.points) and np.array_equal(m.triangles, ref.triangles)
     assert np.array_equal(m.segments, ref.segments)
@@ -203,12 +199,7 @@ def test_the_route_mesh_is_that_of_geos_distances(load_shipped, monkeypatch):
     monkeypatch.setattr(RM, "_cache", OrderedDict())
     m = RM.route_mesh(room, resolution=0.3, kernel=2.0, clearance=0.5)
 
-    class Geos(RM._NearestDistances):
-        def __call__(self, xy):
-            xy = np.asarray(xy, float).reshape(-1, 2)
-            return np.stack([_geos_distance(t.seg, xy) for t in self.trees])
-
-    monkeypatch.setattr(RM, "_NearestDistances", Geos)
+    monkeypatch.setattr(RM, "_NearestDistances", _geos_distances())
     monkeypatch.setattr(RM, "_cache", OrderedDict())
     ref = RM.route_mesh(room, resolution=0.3, kernel=2.0, clearance=0.5)
     assert ref is not m and len(RM.reflex_corners(room)) > 0
