@@ -119,7 +119,8 @@ def test_every_module_imports_on_its_own():
 #: the package's layers, bottom first: a module may import its own layer and those below,
 #: never one above (a module belongs to the longest prefix that names it)
 LAYERS: list[tuple[str, ...]] = [
-    ("pedmesh.errors", "pedmesh._version", "pedmesh._signals", "pedmesh._threads"),
+    ("pedmesh.errors", "pedmesh._version", "pedmesh._signals", "pedmesh._threads",
+     "pedmesh._arrays"),
     ("pedmesh.parameters",),
     ("pedmesh.speed", "pedmesh.population"),
     ("pedmesh.presets",),

@@ -47,6 +47,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .._arrays import readonly
 from ..mesh.triangle_mesh import csr_ranges
 from . import fmm_kernels as _fmm
 from .direction import (PACK_WIDTH, _basis_gradients, _descent, _jamb_overrides, _pack,
@@ -477,7 +478,7 @@ class ActiveRoutes:
         rows = self._union(st.n_triangles, rows=(*self.unit_tris, units))
         reads = self._union(st.n_triangles, rows=(*self.unit_reads, units))
         g, u = np.empty((len(reads), 2)), np.empty((len(reads), 2))
-        _descent(self.bgrad[reads], self.surface.triangles[reads], phi, g, u)
+        _descent(self.bgrad[reads], readonly(self.surface.triangles[reads]), phi, g, u)
         self.G[reads], self.TD[reads] = g, u
         verts, mv, M = self._averaging(units)
         if self.merged is None:
@@ -491,7 +492,7 @@ class ActiveRoutes:
             hv = self.hv[h]
             self.VD[hv] = hinge_inner_directions(atlas, self.G, self.finite_a[hv], h)
         out = np.empty((len(rows), PACK_WIDTH))
-        _pack(st.points, st.triangles[rows], self.VD, self.TD[rows], self.wall_n[rows],
+        _pack(st.points, readonly(st.triangles[rows]), self.VD, self.TD[rows], self.wall_n[rows],
               self.jamb[rows], out)
         out[:, 20] = stair_factors(self.surface, phi, rows)
         jsel = self._union(len(self.jr), rows=(*self.unit_jambs, units))

@@ -436,6 +436,8 @@ class DirectionField:
         the caller already knows it.
         """
         pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64).reshape(-1, 2))
+        if not pts.flags.writeable:  # (the kernel's type as the social force model calls it)
+            pts = pts.copy()
         tri = self.mesh.locate(pts) if triangles is None else np.asarray(triangles, np.int64)
         out = np.empty_like(pts)
         _interpolate_threads(self.packed, np.ascontiguousarray(tri), pts, out)

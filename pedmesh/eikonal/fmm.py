@@ -29,6 +29,7 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from .._arrays import readonly
 from ..errors import ParameterError
 from ..mesh.triangle_mesh import BoundaryKind, TriMesh
 from . import fmm_kernels as _fmm
@@ -107,7 +108,7 @@ class EikonalSolver:
         split = self._split_vertices()
         self.n_obtuse = int(np.sum(split != -1))
         self.n_split_fallback = int(np.sum(split == -2))
-        self.pts = self._march_points()
+        self.pts = readonly(self._march_points())  # (rooms and buildings: one compilation)
         self._corner_rows(split)
         self._rays()
 

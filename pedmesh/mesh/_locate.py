@@ -10,6 +10,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from .._arrays import readonly
+
 #: A point is inside a triangle when all barycentric coordinates are >= -BARY_TOL.
 BARY_TOL = 1e-12
 
@@ -101,7 +103,7 @@ class TriangleLocator:
         )
 
     def locate(self, query: np.ndarray, tol: float = BARY_TOL) -> np.ndarray:
-        q = np.ascontiguousarray(np.asarray(query, dtype=np.float64).reshape(-1, 2))
+        q = readonly(np.ascontiguousarray(np.asarray(query, dtype=np.float64).reshape(-1, 2)))
         out = np.empty(len(q), np.int64)
         _locate(
             self.points, self.triangles, self.ptr, self.idx,

@@ -17,6 +17,8 @@ import math
 import numba as nb
 import numpy as np
 
+from .._arrays import readonly
+
 __all__ = ["SegmentDistance"]
 
 #: up to this many segments every point is measured against every segment (a grid of one
@@ -135,7 +137,7 @@ class SegmentDistance:
         return float(x0), float(y0), float(cell), nx, ny, start, items
 
     def __call__(self, xy) -> np.ndarray:
-        p = np.ascontiguousarray(np.asarray(xy, np.float64).reshape(-1, 2))
+        p = readonly(np.ascontiguousarray(np.asarray(xy, np.float64).reshape(-1, 2)))
         out = np.empty(len(p))
         if self.grid is None:
             out.fill(np.inf)

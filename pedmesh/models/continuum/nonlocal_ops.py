@@ -260,8 +260,10 @@ def _image_pairs(tri_pts, img, near, A, B, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf
     for p in nb.prange(A.shape[0]):
         w = np.empty(2)
         k = np.empty((2, 2))
+        # (bool(): a constant argument is a type of its own to numba, which would compile
+        # pair_integral once more for it than for _all_pairs' flags)
         pair_integral(tri_pts[near[A[p]]], img[B[p]], FG, Qt, Gam, dr, r_max, FG_inf, Q_inf,
-                      Gam_max, Fg_inf, True, False, h0, gl_x, gl_w, w, k)
+                      Gam_max, Fg_inf, bool(True), bool(False), h0, gl_x, gl_w, w, k)
         W[p, 0] = w[0]
         W[p, 1] = w[1]
 

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from ..._arrays import readonly
 from ...mesh.triangle_mesh import TriMesh
 from .fv_kernels import BLOCK, FAST, NCHUNK, PAR, positivity_limit, zhang_shu_theta
 
@@ -213,7 +214,7 @@ def build_reconstruction(mesh: TriMesh) -> ReconstructionData:
     own = _scaled_moments(P, cen, h[:, None])  # (m, 5): moments of each cell in its frame
     moments = np.ascontiguousarray(own[:, 2:5])
     stencil = np.full((m, MAX_STENCIL), -1, np.int64)
-    _stencils(nbr, mesh.triangles, ptr, idx, stencil)
+    _stencils(nbr, mesh.triangles, readonly(ptr), readonly(idx), stencil)
     size = (stencil >= 0).sum(axis=1)
     # least-squares rows: cell averages of the basis of cell i over stencil cells
     sj = np.where(stencil >= 0, stencil, 0)

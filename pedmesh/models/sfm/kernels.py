@@ -1099,10 +1099,11 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
         for d in range(2):
             xs[i, d] = x[i, d] + dt * v[i, d]
             vs[i, d] = v[i, d] + dt * F[i, d]
-    # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1))
+    # stage 2: u2 = 3/4 u + 1/4 (u1 + dt L(u1)); (bool(False), not False: numba types a
+    # constant argument as a type of its own and would compile the callee once more for it)
     n_near, n_far, rebuilt, lay, pos = _refresh_pairs(
         x, xs, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d, R, pi, pj,
-        rho, n_near, n_far, False, lay, pos, e, cone)
+        rho, n_near, n_far, bool(False), lay, pos, e, cone)
     if n_near < 0:
         return -1
     accel(xs, vs, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far, piece,
@@ -1147,8 +1148,8 @@ def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, 
             build_cells(x, n, cx0, cy0, cinv, cnx, cny, cell_start, cell_order)
             lay, pos = pair_blocks(n, cell_start, cell_order, cnx, cny, lay.shape[0] - 1)
             n_near, n_far = list_pairs(x, n, cell_start, cell_order, cnx, cny,
-                                       max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, False, lay,
-                                       pos, e, cone)
+                                       max(rc_f, rc_d), rc_f, pi, pj, rho, rc_d, R, bool(False),
+                                       lay, pos, e, cone)  # (bool(): as in rk3_step)
             return n_near, n_far, True, lay, pos
     return n_near, n_far, False, lay, pos
 

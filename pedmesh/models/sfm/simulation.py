@@ -33,6 +33,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..._arrays import readonly
 from ...errors import ParameterError, SimulationError
 from ...mesh.triangle_mesh import TriMesh
 from .forces import unit_rows
@@ -596,7 +597,7 @@ class Simulation:
         """Gaussian kernel density (eq3, eq4) of the crowd at arbitrary points [ped/m^2]."""
         from . import kernels as K
 
-        q = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
+        q = readonly(np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2))
         out = np.zeros(len(q))
         if self.n == 0:
             return out
