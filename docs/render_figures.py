@@ -440,6 +440,35 @@ def meshing(path: Path = DATA / "meshing.json") -> str:
     return "\n".join(lines)
 
 
+def compile_time(path: Path = DATA / "compile_time.json") -> str:
+    """A fresh install's compilation of a room under four models and a two-storey building
+    (``benchmarks/compile_time.py``)."""
+    record = json.loads(path.read_text())
+    res = record["results"]
+    rows = []
+    for label, r in res["checkouts"].items():
+        rows.append([label, f"{r['compile_median_s']:.0f}", f"{r['compile_best_s']:.0f}",
+                     f"{r['wall_median_s']:.0f}", f"{r['compilations']}",
+                     ", ".join(f"`{k.rsplit('.', 1)[-1]}`" for k in r["compiled_twice"])
+                     or "none"])
+    lines = [f"Workload: {res['workload']}; each checkout in a new process with an empty "
+             f"numba cache, {next(iter(res['checkouts'].values()))['repeats']} time(s), "
+             "interleaved.", ""]
+    lines += _table(["checkout", "compiling, median [s]", "best", "process, median [s]",
+                     "compilations", "kernels compiled twice"], rows, "lrrrrl")
+    if "ratio_median" in res:
+        lines += ["", f"Compile time, this checkout against the other: median "
+                      f"{res['ratio_median']:.2f}, best {res['ratio_best']:.2f}."]
+    first = next(iter(res["checkouts"].values()))
+    lines += ["", "The kernels that took longest (this checkout; the kernels they compile on "
+                  "the way counted as theirs):", ""]
+    lines += _table(["kernel", "compiling [s]"],
+                    [[f"`{k.removeprefix('pedmesh.')}`", f"{v:.1f}"]
+                     for k, v in list(first["kernels_s"].items())[:10]], "l")
+    lines += ["", _provenance(record, path.relative_to(DOCS.parent).as_posix()), ""]
+    return "\n".join(lines)
+
+
 SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_work_precision.md": work_precision,
             "figures_eikonal.md": eikonal,
@@ -451,7 +480,8 @@ SECTIONS = {"figures_continuum_speed.md": continuum_speed,
             "figures_startup.md": startup,
             "figures_building_steps.md": building_steps,
             "figures_exit_ghosts.md": exit_ghosts,
-            "figures_meshing.md": meshing}
+            "figures_meshing.md": meshing,
+            "figures_compile_time.md": compile_time}
 
 
 def main(out_dir: Path = OUT) -> list[Path]:

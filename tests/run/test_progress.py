@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import time
+from types import SimpleNamespace
 
 import pytest
 
@@ -52,9 +53,12 @@ def test_the_estimate_of_a_steady_evacuation(monkeypatch):
 
 
 def test_the_time_left_of_a_run_is_within_twice_the_truth(tmp_path, monkeypatch):
-    """A small room (400 people, a 2 m door; about 3 s of wall time): every estimate from
+    """A small room (400 people, a 2 m door; a few seconds of wall time): every estimate from
     20 % out on, while at least a second is left (the bar shows whole seconds), within a
-    factor of two of the wall time the run then took."""
+    factor of two of the time the run then took. The bar's clock, and the test's, is the
+    process's CPU time: the suite runs in two processes, and the other one's load, which
+    comes and goes, changes the pace of the wall clock mid-run, not the estimator's work
+    (on a quiet machine the two clocks keep one pace)."""
     room = tmp_path / "room.json"
     room.write_text(json.dumps({
         "format": "pedmesh-room", "version": 1, "name": "eta_room", "units": "m",
@@ -68,12 +72,13 @@ def test_the_time_left_of_a_run_is_within_twice_the_truth(tmp_path, monkeypatch)
     class Watched(EvacuationBar):
         def advance(self, out, t_sim):
             super().advance(out, t_sim)
-            seen.append((time.perf_counter(), self.n / self.total, self.time_left()))
+            seen.append((time.process_time(), self.n / self.total, self.time_left()))
 
         def close(self):
-            closed.append(time.perf_counter())
+            closed.append(time.process_time())
             super().close()
 
+    monkeypatch.setattr(progress, "time", SimpleNamespace(perf_counter=time.process_time))
     monkeypatch.setattr(progress, "EvacuationBar", Watched)
     pedmesh.simulate(room, model="sfm", preset="validated", seed=0, quiet=False)
     end = closed[0]
