@@ -5,8 +5,9 @@ numba compiles a kernel once for each combination of argument types, and a read-
 (a mesh's) is another type than a writable one, a constant ``False`` passed from compiled
 code another than a ``bool``. Every such second specialisation is the same machine code
 compiled again: on a fresh install the fast-marching kernel's and the pair list's took
-about 25 s each. The runs below (a room under the social force model and three continua,
-a two-storey building under sfm and eos) leave every pedmesh kernel with one.
+about half a minute each (benchmarks/compile_time.py). The runs below (a room under the
+social force model and three continua, a two-storey building under sfm and eos) leave
+every pedmesh kernel with one.
 """
 
 from __future__ import annotations
