@@ -28,8 +28,8 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
     corner zone (the route converges at doors; docs/validation/route_convergence.md), where
     the shipped point passes too few through narrow entrances as doors (uo-100 -13 %).
     Nelder-Mead from the shipped point (``fit_evaluations_corner.csv``, which resumes): the
-    first 7 evaluations (the point, F = 6.19, and six of the initial simplex, about 600 s
-    each on two cores) found F = 5.44 with ``crowd_stretch`` 1.6.
+    first 14 evaluations (the point, F = 6.19, and the initial simplices, 500-600 s each on
+    two cores) found F = 5.44 with ``crowd_stretch`` 1.6 and F = 5.35 with 1.75.
 
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms

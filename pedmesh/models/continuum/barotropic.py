@@ -320,9 +320,9 @@ def _godunov_point(q, n0, n1, kind, prm, rho_cut, umax, h_rho, h_val):
     """The exact Godunov flux (3 components) between the state (3,) ``q`` and vacuum
     across the unit normal (n0, n1) (see :func:`vacuum_godunov`). A function of its own,
     not inlined: it holds six copies of the pressure law, and inlined into
-    :func:`boundary_edges` beside the Rusanov flux's they made its first compilation 64 s
-    (now 34 s, and 12 s for this function, once for both callers; the same numbers: the
-    exits' fluxes are stored as they come)."""
+    :func:`boundary_edges` beside the Rusanov flux's they made its first compilation 72 s
+    (now 26 s, and 11 s for this function, once for both callers: benchmarks/compile_time.py;
+    the same numbers: the exits' fluxes are stored as they come)."""
     r, ux, uy = _prim(q[0], q[1], q[2], rho_cut, umax)
     if r <= 0.0:
         return 0.0, 0.0, 0.0
