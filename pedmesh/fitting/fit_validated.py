@@ -27,9 +27,10 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
 ``--law corner`` (issue 44, under way): ``--law refit``'s model on the route mesh with its
     corner zone (the route converges at doors; docs/validation/route_convergence.md), where
     the shipped point passes too few through narrow entrances as doors (uo-100 -13 %).
-    Nelder-Mead from the shipped point (``fit_evaluations_corner.csv``, which resumes): the
-    first 14 evaluations (the point, F = 6.19, and the initial simplices, 500-600 s each on
-    two cores) found F = 5.44 with ``crowd_stretch`` 1.6 and F = 5.35 with 1.75.
+    Nelder-Mead (``fit_evaluations_corner.csv``, which resumes) from the shipped point #1
+    (F = 6.19), then, the fit having been restarted from its best point before ``--nm-from``
+    existed, from #7 (``crowd_stretch`` 1.6, F = 5.44; resume with ``--nm-from 7``, whose
+    simplex is #8-#14 and two more). 500-600 s an evaluation on two cores.
 
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
@@ -122,17 +123,17 @@ Method
        at a time in separate processes (each in its own temporary output directory,
        ``NUMBA_NUM_THREADS=1``).
     2. ``scipy.optimize.minimize(method="Nelder-Mead")`` with bounds, from the best grid
-       point, in coordinates scaled to [0, 1] per parameter, an initial simplex of half a
-       grid step along each axis (towards the interior), ``xatol`` 0.015 (1.5 % of each
-       range) and at most ``--nm-evals`` (25) function calls; a point's realisations run
-       at once.
+       point (or evaluation ``--nm-from``), in coordinates scaled to [0, 1] per
+       parameter, an initial simplex of half a grid step along each axis (towards the
+       interior), ``xatol`` 0.015 (1.5 % of each range) and at most ``--nm-evals`` (25)
+       function calls; a point's realisations run at once.
 
     Parameters are rounded (to 0.001; tau to 0.0001, A to 1 N) before a run; every
     evaluation is printed (parameters, errors, objective, seconds) and appended to the
     law's CSV (``docs/validation/fit_evaluations_table.csv``, ``fit_evaluations.csv``) as
     soon as it ends. A rerun reads the CSV and skips every point already in it, so an
     interrupted fit loses nothing and Nelder-Mead, which is deterministic, replays its
-    path to where it stopped.
+    path to where it stopped (given the same start: ``--nm-from`` if it had one).
 
 Output
     ``pedmesh/data/validated.json`` (the model parameters including the fixed ones and the
@@ -145,7 +146,8 @@ Output
 Usage::
 
     python -m pedmesh.fitting.fit_validated [--law crowd|table|weidmann] [--jobs 2]
-        [--nm-evals 25] [--csv PATH] [--data DIR] [--grid-only] [--report-only] [--no-write]
+        [--nm-evals 25] [--nm-from EVAL] [--csv PATH] [--data DIR] [--grid-only]
+        [--report-only] [--no-write]
 
 The continuum models' law under the preset is then measured from the fitted SFM by
 ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``).
@@ -754,10 +756,25 @@ def _to_z(x: dict[str, float]) -> np.ndarray:
                      for n in NAMES])
 
 
-def run_nelder_mead(log: Log, pool, max_evals: int, data_dir: str | None) -> Any:
+def nm_start(log: Log, eval_no: int | None = None) -> dict[str, Any]:
+    """Where Nelder-Mead starts: evaluation ``eval_no`` of the log if given, else the best
+    grid point. Not the best point so far: a rerun must start where the interrupted one
+    did, so that it replays that path from the CSV rather than building a new simplex."""
+    if eval_no is not None:
+        for rec in log.order:
+            if int(rec["eval"]) == eval_no:
+                return rec
+        raise SystemExit(f"--nm-from {eval_no}: no such evaluation in {log.path} "
+                         f"(it has {len(log.order)})")
+    grid = [r for r in log.order if r["phase"] == "grid"]
+    return min(grid or log.order, key=lambda r: (r["objective"], r["eval"]))
+
+
+def run_nelder_mead(log: Log, pool, max_evals: int, data_dir: str | None,
+                    start_eval: int | None = None) -> Any:
     from scipy.optimize import minimize
 
-    start = log.best()
+    start = nm_start(log, start_eval)
     z0 = _to_z(start)
     simplex = [z0]
     for i, n in enumerate(NAMES):
@@ -1083,6 +1100,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=1, help="evaluations at once (processes)")
     ap.add_argument("--nm-evals", type=int, default=25,
                     help="most Nelder-Mead function calls (default 25)")
+    ap.add_argument("--nm-from", type=int, default=None, metavar="EVAL",
+                    help="start Nelder-Mead's simplex at this evaluation of the CSV "
+                         "(default: the best grid point)")
     ap.add_argument("--csv", type=Path, default=None,
                     help="evaluation log (resumed; default docs/validation/ and the law's file)")
     ap.add_argument("--data", default=None, metavar="DIR", help="experiments directory")
@@ -1108,7 +1128,7 @@ def main(argv: list[str] | None = None) -> int:
             if not log.order:
                 raise SystemExit("no evaluation succeeded")
             if not args.grid_only and args.nm_evals > 0:
-                nm = run_nelder_mead(log, pool, args.nm_evals, args.data)
+                nm = run_nelder_mead(log, pool, args.nm_evals, args.data, args.nm_from)
     finally:
         if pool is not None:
             pool.shutdown()
