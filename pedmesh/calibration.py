@@ -81,7 +81,7 @@ class CalibrationOptions:
 
 
 # ------------------------------------------------------------------ kernels
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F, sij):
     """Pair accelerations in a periodic Lx x Ly box (minimum image) into F; returns
     sum_{i<j} r_ij . f_ij / m (the virial sum per unit mass). ``rij``, ``sij``: the sums of
@@ -145,7 +145,7 @@ def _periodic_forces(x, v, Lx, Ly, ncx, ncy, rc, rij, A, B, k, kappa, m, F, sij)
     return vir
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _run_box(x, v, L, nc, rc, rij, A, B, k, kappa, m, tau, dt, n_relax, n_sample, every,
              noise, seed, out_vir, out_kin, sij):
     """SSP-RK3 dynamics of a standing crowd in a periodic box; records the virial and the
@@ -391,7 +391,7 @@ def calibrate(params: SocialForceParams | None = None, options: CalibrationOptio
 
 
 # ------------------------------------------------------------------ the flowing crowd
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _pair_stress(x, v, pi, pj, rij, A, B, k, kappa, m, S):
     """Per-pedestrian virial tensors S_i = 1/2 sum_j r_ij (x) f_ij / m over the pairs
     (pi, pj) (half of each pair's r (x) f to each partner)."""

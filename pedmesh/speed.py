@@ -48,7 +48,7 @@ SPEED_LAWS = {"exponential": EXPONENTIAL, "weidmann": WEIDMANN, "table": TABLE}
 _T0 = 6
 
 
-@nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def _table(law, x):
     """g(x) and g'(x) of a ``table`` law array at x [ped/m^2] (piecewise linear, constant
     beyond the last point; x >= 0)."""
@@ -64,7 +64,7 @@ def _table(law, x):
     return gs[k] + slope * (x - xs[k]), slope
 
 
-@nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def shape(law, rho):
     """g(rho) = U_e(rho) / U_f of the law array ``law`` at density ``rho`` [ped/m^2]."""
     rho = rho - law[4]
@@ -79,7 +79,7 @@ def shape(law, rho):
     return 1.0 - math.exp(-law[3] * (1.0 / rho - 1.0 / law[2]))
 
 
-@nb.njit(cache=True, error_model="numpy", fastmath={"contract"}, inline="always")
+@nb.njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"}, inline="always")
 def flux_and_slope(law, U_f, rho):
     """The flow f(rho) = rho U_f g(rho - shift) [ped/(m s)] at rho = max(rho, 0) and
     ``|f'(rho)|`` [m/s]."""

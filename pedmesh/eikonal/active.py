@@ -77,7 +77,7 @@ def _csr(keys: np.ndarray, values: np.ndarray, n: int) -> tuple[np.ndarray, np.n
     return ptr, np.ascontiguousarray(np.asarray(values)[order])
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _distinct(ptr, idx, keys, extra, mark):
     """The distinct entries, sorted, of the CSR rows ``keys`` (of ``ptr``, ``idx``) and of
     ``extra``; ``mark`` (bool over their range, all False) is left as it was."""

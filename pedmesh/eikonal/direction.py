@@ -114,7 +114,7 @@ def _normalise(v: np.ndarray) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _unit_rows(v, out):
     for i in range(v.shape[0]):
         x, y = v[i, 0], v[i, 1]
@@ -127,7 +127,7 @@ def _unit_rows(v, out):
             out[i, 1] = 0.0
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _descent(bgrad, triangles, phi, grad, unit):
     """Per triangle: the P1 gradient ``grad`` of the vertex values ``phi`` (0 where a vertex
     value is not finite) and the unit descent direction ``unit`` = -grad/|grad| (0 where the
@@ -195,7 +195,7 @@ def _jamb_overrides(mesh: TriMesh) -> np.ndarray:
 PACK_WIDTH = 21
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
     """Everything the interpolation needs about triangle ``t`` in one row ``out[t]``:
 
@@ -238,7 +238,7 @@ def _pack(points, triangles, vdir, tdir, wall_n, jamb, out):
         out[t, 20] = 1.0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _inside_packed(P, t, px, py, margin):
     """Whether (px, py) lies in triangle ``t`` with every barycentric coordinate >= margin
     (from the affine maps of the packed table ``P``: no division)."""
@@ -247,7 +247,7 @@ def _inside_packed(P, t, px, py, margin):
     return l1 >= margin and l2 >= margin and 1.0 - l1 - l2 >= margin
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _interpolate(P, tri_idx, xy, out):
     """Directions ``out[k]`` at points ``xy[k]`` in triangles ``tri_idx[k]`` (-1: outside,
     direction 0) from the packed table ``P`` of :func:`_pack`."""
@@ -292,7 +292,7 @@ def _interpolate(P, tri_idx, xy, out):
             out[k, 1] = ey / nrm * P[t, 20]
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _interpolate_threads(P, tri_idx, xy, out):
     """:func:`_interpolate` with the points in chunks of 1,024 on the threads (the same
     numbers: each point is its own)."""

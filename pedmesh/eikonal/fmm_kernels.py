@@ -61,7 +61,7 @@ def _prefetch(typingctx, arr, i):
     return types.void(arr, i), codegen
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _prefetch_probe(a):
     _prefetch(a, 1)
     return a[0]
@@ -84,7 +84,7 @@ if not _prefetch_works():  # pragma: no cover
 
 
 # ---------------------------------------------------------------- indexed 4-ary heap
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _sift_up(hv, hk, pos, i, v, key, ordered):
     """Place vertex ``v`` with ``key`` at slot ``i`` or above (``ordered``: equal keys in
     the order of their vertices, see :func:`march`)."""
@@ -105,7 +105,7 @@ def _sift_up(hv, hk, pos, i, v, key, ordered):
     pos[v] = i
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _sift_down_last(hv, hk, pos, size, ordered):
     """Move the element in slot ``size`` (just removed from the end) down from the root
     (``ordered``: equal keys in the order of their vertices)."""
@@ -145,7 +145,7 @@ def _sift_down_last(hv, hk, pos, size, ordered):
 
 
 # ---------------------------------------------------------------- local solver
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def triangle_update(cx, cy, cz, ax, ay, az, bx, by, bz, ta, tb, f):
     """Arrival time at C = (cx, cy, cz) from a planar front through A (time ``ta``) and B
     (``tb``), all three in one plane (z = 0 for a room; a building's surface is planar in
@@ -192,7 +192,7 @@ def triangle_update(cx, cy, cz, ax, ay, az, bx, by, bz, ta, tb, f):
 UNRANKED = np.iinfo(np.int32).max
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def triangle_means(c, triangles, out):
     """``out[t]`` = the mean of the vertex values ``c`` at triangle ``t``'s corners, summed
     in numpy's order (``c[triangles].mean(axis=1)`` bit for bit, without its (m, 3) copy:
@@ -201,7 +201,7 @@ def triangle_means(c, triangles, out):
         out[t] = (c[triangles[t, 0]] + c[triangles[t, 1]] + c[triangles[t, 2]]) / 3.0
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def march(
     T, fixed_vertices, fixed_values, pts, vt_ptr, vt_corner, ds_ptr, ds_corner,
     ray_ptr, ray_idx, ray_cost, f_tri, ordered, order,
@@ -245,7 +245,7 @@ def march(
                        ds_ptr, ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, False, order)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def march_from(
     T, phi0, rank0, order0, k0, pos, fixed, mark, rev_ptr, rev_idx, pts, vt_ptr, vt_corner,
     ds_ptr, ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, order,
@@ -308,7 +308,7 @@ def march_from(
     return cnt
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _march_loop(
     T, pos, rank, fixed, hv, hk, size, cnt, sources, pts, vt_ptr, vt_corner, ds_ptr,
     ds_corner, ray_ptr, ray_idx, ray_cost, f_tri, ordered, order,
@@ -452,7 +452,7 @@ def _march_loop(
 
 
 # ---------------------------------------------------------------- set-up helpers
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def find_split_vertices(points, tri, nbr, max_steps):
     """Kimmel-Sethian split of every obtuse angle.
 

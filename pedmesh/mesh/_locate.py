@@ -16,7 +16,7 @@ from .._arrays import readonly
 BARY_TOL = 1e-12
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _build_buckets(pts, tri, x0, y0, inv_cell, nx, ny):
     m = tri.shape[0]
     counts = np.zeros(nx * ny + 1, np.int64)
@@ -47,7 +47,7 @@ def _build_buckets(pts, tri, x0, y0, inv_cell, nx, ny):
     return ptr, idx
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _inside(pts, tri, t, px, py, tol):
     ax, ay = pts[tri[t, 0], 0], pts[tri[t, 0], 1]
     bx, by = pts[tri[t, 1], 0], pts[tri[t, 1], 1]
@@ -63,7 +63,7 @@ def _inside(pts, tri, t, px, py, tol):
     return True
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _locate(pts, tri, ptr, idx, x0, y0, inv_cell, nx, ny, q, tol, out):
     for k in range(q.shape[0]):
         px, py = q[k, 0], q[k, 1]

@@ -28,7 +28,7 @@ BRUTE_MAX = 48
 CELLS_PER_SEGMENT = 1.0
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _point_segment(px, py, ax, ay, bx, by):
     if ax == bx and ay == by:
         dx = px - ax
@@ -48,7 +48,7 @@ def _point_segment(px, py, ax, ay, bx, by):
     return abs(s) * math.sqrt(len2)
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _cell_min(best, p, i, seg, start, items, c):
     for k in range(start[c], start[c + 1]):
         j = items[k]
@@ -58,7 +58,7 @@ def _cell_min(best, p, i, seg, start, items, c):
     return best
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _gridded(p, seg, x0, y0, cell, nx, ny, start, items, out):
     # rings of cells about the point's (clamped) cell: after ring r every segment not yet
     # seen lies at least r cells away, so at least r * cell from the point

@@ -24,7 +24,7 @@ _ROW_MAX = 2 * 20 + 2 * 17 + 4
 _LIMIT = 1e11
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _put_int(buf, pos, v):
     """Write the decimal digits of the integer ``v`` at ``buf[pos:]``; the new position."""
     if v < 0:
@@ -46,7 +46,7 @@ def _put_int(buf, pos, v):
     return pos
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _put_fixed4(buf, pos, x):
     """Write ``x`` as ``f"{x:.4f}"`` at ``buf[pos:]``; the new position, or -1 where the
     rounding is too close to call (or ``x`` is not finite or too large)."""

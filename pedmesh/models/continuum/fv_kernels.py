@@ -14,8 +14,10 @@ ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 #: compile options of the finite-volume kernels: ``error_model="numpy"`` drops the
 #: ZeroDivisionError check numba puts on every float division (a branch per division that
 #: also keeps LLVM from vectorising; the kernels guard their divisions themselves), and
-#: ``contract`` lets multiply-adds become fused multiply-adds (one rounding instead of two)
-FAST = dict(cache=True, error_model="numpy", fastmath={"contract"})
+#: ``contract`` lets multiply-adds become fused multiply-adds (one rounding instead of two);
+#: ``nogil``: a kernel lets go of Python's lock while it runs, so that the run's output
+#: thread (:mod:`pedmesh.run.background`) writes meanwhile instead of waiting for the step
+FAST = dict(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 #: the same for kernels whose loops run on all cores (``numba.prange``). Every such loop
 #: writes only its own item (a cell or an edge) and reads what no iteration writes: sums
 #: over a cell's edges are gathered per cell (in increasing edge index, the order the
@@ -487,7 +489,7 @@ def launch_threads(a):
 
 
 #: the options of the kernels that must round as numpy does (no fused multiply-adds)
-EXACT_PAR = dict(cache=True, parallel=True)
+EXACT_PAR = dict(cache=True, nogil=True, parallel=True)
 
 
 @nb.njit(**EXACT_PAR)

@@ -480,7 +480,7 @@ def _system(a, G, imp, V, areas, cf, cs, nbr):
 CG_CHUNK = 1024
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _cg_dot(x, y, part):
     """``x . y`` over the chunks."""
     n = x.shape[0]
@@ -493,7 +493,7 @@ def _cg_dot(x, y, part):
     return sum_in_order(part, nc)
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _cg_matvec_dot(indptr, indices, data, p, q, part):
     """``q = A p`` (CSR, rows in their stored order) and ``p . q``."""
     n = q.shape[0]
@@ -510,7 +510,7 @@ def _cg_matvec_dot(indptr, indices, data, p, q, part):
     return sum_in_order(part, nc)
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _cg_update(alpha, p, q, x, r, part):
     """``x += alpha p``, ``r -= alpha q``, and ``r . r``."""
     n = x.shape[0]
@@ -526,7 +526,7 @@ def _cg_update(alpha, p, q, x, r, part):
     return sum_in_order(part, nc)
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _cg_direction(r, beta, p):
     """``p = r + beta p``."""
     n = p.shape[0]
@@ -536,7 +536,7 @@ def _cg_direction(r, beta, p):
             p[i] = r[i] + beta * p[i]
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _scatter_scaled(rho, cells, y, scale):
     """``rho[cells] = y * scale``, on the threads."""
     n = cells.shape[0]
@@ -546,7 +546,7 @@ def _scatter_scaled(rho, cells, y, scale):
                 rho[cells[r]] = y[r] * scale[r]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def conjugate_gradients(indptr, indices, data, b, x0, rtol, maxiter):
     """The symmetric positive definite system ``A x = b`` (CSR; scaled to a unit diagonal,
     so unpreconditioned) by conjugate gradients from ``x0``, until ``|r| < rtol |b|`` (as

@@ -40,7 +40,7 @@ ensure_tbb()  # (before numba's first parallel loop: pedmesh._threads)
 __all__ = ["Lookahead"]
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _ahead(indptr, idx, dx, dy, base, ex, ey, rho, p, norm, out):
     """out[i] = the cone-weighted, normalised average of ``rho`` ahead of cell i along
     (ex[i], ey[i]); dx, dy = x_j - x_i per stored pair."""

@@ -50,7 +50,7 @@ __all__ = ["PairOperators", "build_pair_operators", "LongRangeOperator"]
 _GL3 = (np.array([-math.sqrt(3 / 5), 0.0, math.sqrt(3 / 5)]), np.array([5 / 9, 8 / 9, 5 / 9]))
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _interp(tab, dr, r, tail):
     """Linear interpolation of a table on [0, r_max]; beyond, the constant ``tail``."""
     s = r / dr
@@ -61,7 +61,7 @@ def _interp(tab, dr, r, tail):
     return tab[i] * (1.0 - w) + tab[i + 1] * w
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _gam(tab, dr, r, r_max, gam_max, fg_inf):
     """Gam(r), with its logarithmic tail Gam(r_max) + Fg_inf ln(r / r_max)."""
     if r >= r_max:
@@ -69,7 +69,7 @@ def _gam(tab, dr, r, r_max, gam_max, fg_inf):
     return _interp(tab, dr, r, gam_max)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _seg_dist(ax, ay, bx, by, cx, cy, dx, dy):
     """Distance between segments AB and CD and the parameters (s on AB, t on CD) of a
     closest pair (approximately: the best of the four end-point projections)."""
@@ -107,7 +107,7 @@ def _seg_dist(ax, ay, bx, by, cx, cy, dx, dy):
     return best, bs, bt
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _gauss_piece(lo, hi, L, gl_x, gl_w, nodes, weights, n):
     """Append the Gauss-Legendre nodes of the piece [lo, hi] of [0, 1] (edge length L)
     at position n; returns the new count."""
@@ -120,7 +120,7 @@ def _gauss_piece(lo, hi, L, gl_x, gl_w, nodes, weights, n):
     return n
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _graded_nodes(L, s0, d, h0, gl_x, gl_w, nodes, weights):
     """Gauss-Legendre nodes on [0, 1] (edge of length L) on pieces graded towards the
     parameter s0, where the other edge is closest (at distance d); returns the count."""
@@ -145,7 +145,7 @@ def _graded_nodes(L, s0, d, h0, gl_x, gl_w, nodes, weights):
     return n
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _uniform_nodes(L, piece, gl_x, gl_w, nodes, weights):
     """Gauss-Legendre nodes on [0, 1] on equal pieces of about ``piece`` metres."""
     k = max(1, min(int(math.ceil(L / piece)), nodes.shape[0] // gl_x.shape[0]))
@@ -155,7 +155,7 @@ def _uniform_nodes(L, piece, gl_x, gl_w, nodes, weights):
     return n
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def pair_integral(Ti, Tj, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf, Gam_max, Fg_inf,
                   want_w, want_k, h0, gl_x, gl_w, out_w, out_k):
     """int_{T_i} int_{T_j} Phi r_hat (2,) and Psi t t^T (2, 2) for two counter-clockwise
@@ -219,7 +219,7 @@ def pair_integral(Ti, Tj, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf, Gam_max, Fg_inf
                         out_k[1, 1] += gv
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _tri_distances(tri_pts, I, J, out):
     """Smallest distance between triangles I[p] and J[p] (non-overlapping triangles)."""
     for p in range(I.shape[0]):
@@ -235,7 +235,7 @@ def _tri_distances(tri_pts, I, J, out):
         out[p] = best
 
 
-@nb.njit(cache=True, parallel=True)  # (each pair writes only its own row: no race)
+@nb.njit(cache=True, nogil=True, parallel=True)  # (each pair writes only its own row: no race)
 def _all_pairs(tri_pts, I, J, dist, k_range, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf, Gam_max,
                Fg_inf, want_w, want_k, h0, gl_x, gl_w, W, K):
     for p in nb.prange(I.shape[0]):
@@ -252,7 +252,7 @@ def _all_pairs(tri_pts, I, J, dist, k_range, FG, Qt, Gam, dr, r_max, FG_inf, Q_i
         K[p, 2] = k[1, 1]
 
 
-@nb.njit(cache=True, parallel=True)  # (each pair writes only its own row: no race)
+@nb.njit(cache=True, nogil=True, parallel=True)  # (each pair writes only its own row: no race)
 def _image_pairs(tri_pts, img, near, A, B, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf, Gam_max,
                  Fg_inf, h0, gl_x, gl_w, W):
     """The repulsion integrals of cell ``near[A[p]]`` and wall image ``img[B[p]]`` into
@@ -268,7 +268,7 @@ def _image_pairs(tri_pts, img, near, A, B, FG, Qt, Gam, dr, r_max, FG_inf, Q_inf
         W[p, 1] = w[1]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _row_dot2(ptr, idx, dx, dy, rho, i):
     """Row i of two CSR matrices with one pattern times rho (sums in CSR order)."""
     fx = 0.0
@@ -280,7 +280,7 @@ def _row_dot2(ptr, idx, dx, dy, rho, i):
     return fx, fy
 
 
-@nb.njit(cache=True, parallel=True)  # (rows in parallel; no FMA: scipy's exact sums)
+@nb.njit(cache=True, nogil=True, parallel=True)  # (rows in parallel; no FMA: scipy's exact sums)
 def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, active, out):
     """out_i = rho_i (sum_j W_ij rho_j [+ sum_j I_ij rho_j]) for both components, with Wx,
     Wy (and Ix, Iy) sharing one CSR pattern each (sums in CSR order, like scipy's); 0 in
@@ -298,7 +298,7 @@ def _rep_apply(ptr, idx, dx, dy, iptr, iidx, ix, iy, walls, rho, active, out):
         out[i, 1] = rho[i] * fy
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _fric_row(ptr, idx, kxx, kxy, kyy, rho, mom, active, i):
     """Row i of :func:`_fric_apply`: rho_i (K m)_i - (K rho)_i m_i (0 for an empty cell at
     rest and for a cell outside ``active``)."""
@@ -329,7 +329,7 @@ def _fric_row(ptr, idx, kxx, kxy, kyy, rho, mom, active, i):
             rho[i] * (ayx + ayy) - (rxy * mx + ryy * my))
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, active, out):
     """out_i = rho_i (K m)_i - (K rho)_i m_i with the 2x2 blocks K_ij = [[kxx, kxy], [kxy,
     kyy]] on one CSR pattern (see :meth:`PairOperators.friction`); 0 in empty cells at rest
@@ -340,7 +340,7 @@ def _fric_apply(ptr, idx, kxx, kxy, kyy, rho, mom, active, out):
         out[i, 1] = fy
 
 
-@nb.njit(cache=True, parallel=True)
+@nb.njit(cache=True, nogil=True, parallel=True)
 def _fric_rk3(ptr, idx, kxx, kxy, kyy, rho, M, active, h, n, M1, M2):
     """``n`` Shu-Osher SSP-RK3 steps of length ``h`` [s] of dM/dt = friction(rho, M) (density
     fixed), in place on ``M`` (m, 2); ``M1``, ``M2`` (m, 2) work. Each stage is one parallel

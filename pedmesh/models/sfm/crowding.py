@@ -84,7 +84,7 @@ def width_map(walkable, *, reach: float = WIDTH_REACH_M, cell: float = WIDTH_CEL
     return WidthMap(np.ascontiguousarray(width), float(x0), float(y0), float(cell))
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _lookup(p, n, width, x0, y0, inv, out):
     nx, ny = width.shape
     for i in range(n):
@@ -93,7 +93,7 @@ def _lookup(p, n, width, x0, y0, inv, out):
         out[i] = width[a, b]
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def crowd_factor_at(px, py, width, x0, y0, inv, w_queue, span):
     """The crowding factor in [0, 1] of a pedestrian at (px, py) (``span``: the crowd width
     less the queue width)."""
@@ -104,7 +104,7 @@ def crowd_factor_at(px, py, width, x0, y0, inv, w_queue, span):
     return 0.0 if f < 0.0 else (1.0 if f > 1.0 else f)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def crowd_factors(x, n, width, x0, y0, inv, w_queue, w_crowd, c):
     """The crowding factors ``c[i]`` in [0, 1] of pedestrians at ``x`` (see the module)."""
     span = w_crowd - w_queue

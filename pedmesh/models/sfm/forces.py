@@ -26,7 +26,7 @@ NO_CONE = np.array([0.0, 1.0])
 UNIT_SLACK = 1e-9
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def unit_direction(ex, ey):
     """``(ex, ey)`` as a unit vector: the desired direction without the length a stair's
     speed factor gives it (0 stays 0; a unit vector to round-off is returned as it is, so
@@ -40,7 +40,7 @@ def unit_direction(ex, ey):
     return ex, ey
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def unit_rows(e):
     """Directions ``e`` (k, 2) as the density cone reads them: a copy with each row through
     :func:`unit_direction`."""
@@ -50,7 +50,7 @@ def unit_rows(e):
     return out
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _cone(c, p, norm):
     if c <= 0.0:
         return 0.0
@@ -61,7 +61,7 @@ def _cone(c, p, norm):
     return norm * c ** p
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def cone_weights(dx, dy, d2, cone, eix, eiy, ejx, ejy):
     """The weights of a pair's kernel term in i's and j's densities: ``dx, dy`` = x_i -
     x_j at squared distance ``d2``, ``cone`` = (p, norm) of the density cone. With p > 0
@@ -80,7 +80,7 @@ def cone_weights(dx, dy, d2, cone, eix, eiy, ejx, ejy):
             _cone((dx * ejx + dy * ejy) / d, p, cone[1]))
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij):
     """Force [N] on pedestrian i from j: ``dx, dy`` = x_i - x_j at distance ``d`` > 0 and
     ``dvx, dvy`` = v_j - v_i. The social repulsion A exp((s_ij - d)/B) and the body force
@@ -106,7 +106,7 @@ def pair_force(dx, dy, d, dvx, dvy, rij, A, invB, k, kappa, sij):
     return fx, fy
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def pair_terms(dx, dy, d, dvx, dvy, rij, sij, A, invB, k, kappa, inv_m, lam, eix, eiy, ejx,
                ejy):
     """The accelerations [m/s^2] a pair gives: ``(aix, aiy, ajx, ajy)``, i's to add and j's

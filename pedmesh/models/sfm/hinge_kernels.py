@@ -21,7 +21,7 @@ from .forces import cone_weights, pair_terms
 __all__ = ["hinge_pairs", "hinge_accel", "hinge_density"]
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _seg_dist2(px, py, ax, ay, bx, by):
     dx, dy = bx - ax, by - ay
     L2 = dx * dx + dy * dy
@@ -31,7 +31,7 @@ def _seg_dist2(px, py, ax, ay, bx, by):
     return qx * qx + qy * qy
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def hinge_pairs(x, n, tri, piece, hseg, hptr, hidx, hto, hshift, rc, cell_start, cell_order,
                 cx0, cy0, cinv, cnx, cny, hi, hj, hs):
     """The pairs (i, j) closer than ``rc`` [m] across a stair edge, with i on the edge's
@@ -79,7 +79,7 @@ def hinge_pairs(x, n, tri, piece, hseg, hptr, hidx, hto, hshift, rc, cell_start,
     return m
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def hinge_density(x, nh, hi, hj, hs, rc_d, R, rho, e, cone):
     """Add the Gaussian kernel weights of the pairs across stair edges to ``rho`` (with the
     density cone ``cone`` of the directions ``e``,
@@ -99,7 +99,7 @@ def hinge_density(x, nh, hi, hj, hs, rc_d, R, rho, e, cone):
             rho[j] += w * wj
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def hinge_accel(x, v, nh, hi, hj, hs, rc_f, rc_d, rad, A, B, k, kappa, m, R, F, rho,
                 with_density, rs, lam, e, cone):
     """Add the accelerations of the pairs across stair edges to ``F`` (and, with

@@ -48,7 +48,7 @@ CHUNK = 256
 
 
 # ------------------------------------------------------------------ cell list
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _cell_of(px, py, x0, y0, inv_cell, nx, ny):
     ci = int((px - x0) * inv_cell)
     cj = int((py - y0) * inv_cell)
@@ -57,7 +57,7 @@ def _cell_of(px, py, x0, y0, inv_cell, nx, ny):
     return ci * ny + cj
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
     """Counting sort of pedestrians into cells; ``cell_start`` has nx*ny+1 entries. Within
     a cell the pedestrians are in the order of their rows."""
@@ -78,7 +78,7 @@ def build_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
         fill[c] += 1
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def update_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
     """:func:`build_cells` into arrays that hold a cell list already (of other positions,
     from either function; zeros: of nobody), the same result: only the entries of
@@ -118,7 +118,7 @@ def update_cells(x, n, x0, y0, inv_cell, nx, ny, cell_start, cell_order):
 
 
 # ------------------------------------------------------------------ pair list + density
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _stencil_cell(ci, cj, q, nx, ny):
     """Cell ``q`` of the half stencil of cell (ci, cj): q = 0 the cell itself, then
     (+1,-1), (+1,0), (+1,+1), (0,+1); -1 if it lies outside the grid."""
@@ -136,7 +136,7 @@ def _stencil_cell(ci, cj, q, nx, ny):
     return ni * ny + nj
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _cell_work(ci, cj, cell_start, nx, ny):
     """The distances the pair search tests for the pedestrians of cell (``ci``, ``cj``):
     each with the later ones of its own cell and with everyone in the four other cells of
@@ -153,7 +153,7 @@ def _cell_work(ci, cj, cell_start, nx, ny):
     return m * (m - 1) // 2 + m * near + m
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def pair_blocks(n, cell_start, cell_order, nx, ny, nblocks):
     """Cut the cells into ``nblocks`` runs of consecutive cells with about equal work:
     ``lay`` (nblocks + 1, 5) int64 with block b's first cell in ``lay[b, 0]``
@@ -208,7 +208,7 @@ def pair_blocks(n, cell_start, cell_order, nx, ny, nblocks):
     return lay, pos
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _block_of(lay, c):
     """The block of cell ``c`` (the last one starting at or before it)."""
     b = np.searchsorted(lay[:, 0], c, side="right") - 1
@@ -217,7 +217,7 @@ def _block_of(lay, c):
     return b
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def list_pairs(x, n, cell_start, cell_order, nx, ny, rc, rc_near, pi, pj, rho, rc_d, R,
                with_density, lay, pos, e, cone):
     """:func:`build_pairs` on threads, one block of cells (:func:`pair_blocks`) each.
@@ -460,7 +460,7 @@ def pair_accel_list(x, v, n, pi, pj, n_near, n_far, rc_f, rc_d, rad, A, B, k, ka
                       cone)
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f, rc_d, rad,
                       A, B, k, kappa, m, R, F, rho, with_density, rs, lam, e, cone):
     """:func:`pair_accel_list` on threads, over a list from :func:`list_pairs` (``lay``,
@@ -555,13 +555,13 @@ def pair_accel_blocks(x, v, n, pi, pj, n_near, n_far, lay, pos, cell_start, rc_f
 
 
 # ------------------------------------------------------------------ space requirement
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _social_radius(rad_i, ue_i, shrink, h, crowd, cf_i):
     s = rad_i - (shrink * cf_i if crowd else shrink) + h * ue_i
     return s if s < rad_i else rad_i
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def social_radii(n, rad, ue, shrink, t_space, crowd, cf, rs):
     """The social radii [m] of the speed-dependent space requirement into ``rs``:
     ``min(rad_i, rad_i - shrink + t_space ue_i / 2)`` with ``ue_i`` the desired speed [m/s]
@@ -579,7 +579,7 @@ def social_radii(n, rad, ue, shrink, t_space, crowd, cf, rs):
         rs[i] = _social_radius(rad[i], ue[i], shrink, h, crowd, cf[i])
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def crowd_density(rho, c, knee, stretch):
     """The density [ped/m^2] at which the speed law is read for a pedestrian with crowding
     factor ``c`` (:mod:`pedmesh.models.sfm.crowding`): above ``knee`` the law's dense part is
@@ -590,7 +590,7 @@ def crowd_density(rho, c, knee, stretch):
     return knee + (rho - knee) / (1.0 + c * (stretch - 1.0))
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _desired_speed(u0_i, law, rho_i, const_speed, crowd, cf_i, knee, stretch):
     if const_speed >= 0.0:
         return const_speed
@@ -599,20 +599,20 @@ def _desired_speed(u0_i, law, rho_i, const_speed, crowd, cf_i, knee, stretch):
     return u0_i * shape(law, rho_i)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def desired_speeds(n, u0, law, rho, const_speed, crowd, cf, knee, stretch, ue):
     """Desired speeds [m/s] into ``ue``: ``u0[i] g(rho[i])`` (the density read through
     :func:`crowd_density` if ``crowd``), or ``const_speed`` if that is >= 0."""
     for i in range(n):
         ue[i] = _desired_speed(u0[i], law, rho[i], const_speed, crowd, cf[i], knee, stretch)
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _proj(px, py, ax, ay, bx, by):
     dx = bx - ax
     dy = by - ay
     return ((px - ax) * dx + (py - ay) * dy) / (dx * dx + dy * dy)
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def wall_contact(px, py, s, piece, next_seg):
     """Contact point of (px, py) with the straight wall piece of segment ``s``, if ``s``
     owns it. Returns (owns, cx, cy).
@@ -645,7 +645,7 @@ def wall_contact(px, py, s, piece, next_seg):
 
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _wall_one(i, x, v, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr, cell_seg, rc2,
               rad, A, invB, k, kappa, inv_m, F, rs):
     """Add pedestrian i's wall accelerations to ``F[i]``, segment by segment."""
@@ -672,7 +672,7 @@ def _wall_one(i, x, v, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr, ce
         F[i, 1] += fy * inv_m
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
                cell_seg, rc_w, rad, A, B, k, kappa, m, F, rs):
     """Add the wall accelerations of every pedestrian to ``F`` (cut-off ``rc_w`` [m]; body
@@ -686,7 +686,7 @@ def wall_accel(x, v, n, piece, next_seg, x0, y0, inv_cell, gnx, gny, cell_ptr,
 
 
 # ------------------------------------------------------------------ tracing in the mesh
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _bary(points, triangles, t, px, py):
     a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
     ax, ay = points[a, 0], points[a, 1]
@@ -698,7 +698,7 @@ def _bary(points, triangles, t, px, py):
     return 1.0 - l1 - l2, l1, l2
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def trace(points, triangles, nbr, t0, ax, ay, bx, by):
     """Follow the segment A -> B through the mesh, starting in triangle ``t0`` (containing A).
 
@@ -733,7 +733,7 @@ def trace(points, triangles, nbr, t0, ax, ay, bx, by):
 
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _follow_one(i, points, triangles, nbr, tri, x, P):
     t0 = tri[i]
     if _inside_packed(P, t0, x[i, 0], x[i, 1], INSIDE_MARGIN):
@@ -749,7 +749,7 @@ def _follow_one(i, points, triangles, nbr, tri, x, P):
     tri[i] = t
 
 
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def follow(points, triangles, nbr, tri, x, n, P):
     """Update the triangle of every pedestrian by walking from its previous triangle.
     A pedestrian (temporarily) outside the mesh keeps the last triangle it was in. ``P`` is
@@ -760,7 +760,7 @@ def follow(points, triangles, nbr, tri, x, n, P):
 
 
 # ------------------------------------------------------------------ one SSP-RK3 step
-@nb.njit(parallel=True, cache=True)
+@nb.njit(parallel=True, cache=True, nogil=True)
 def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
           piece, next_seg, wx0, wy0, winv, wnx, wny, wptr, wseg,
           rc_f, rc_d, rc_w, rad, A, B, k, kappa, m, R, tau, u0, law,
@@ -854,7 +854,7 @@ def accel(x, v, n, tri, points, triangles, nbr, dpack, pi, pj, n_near, n_far,
 
 
 # ------------------------------------------------------------------ exits and reflection
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _settle_one(i, x_old, x, v, tri, points, triangles, nbr, tri_edges, edge_kind, edge_owner,
                 edge_normals, exit_of, exit_frac, P):
     """:func:`settle` for pedestrian i; returns its number of reflections."""
@@ -927,7 +927,7 @@ def settle(x_old, x, v, tri, n, points, triangles, nbr, tri_edges, edge_kind, ed
 
 
 # ------------------------------------------------------------------ densities on the mesh
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True, nogil=True, inline="always")
 def _cell_span(p, origin, inv_cell, ncell, reach):
     """The first and last cell index (clamped to the grid) within ``reach`` cells of the
     cell holding the coordinate ``p`` [m] (floored: a point left of the grid is in no cell,
@@ -1133,7 +1133,7 @@ def rk3_step(x, v, n, dt, tri, points, triangles, nbr, dpack,
     return n_near + n_far
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, cny, rc_f, rc_d,
                    R, pi, pj, rho, n_near, n_far, force, lay, pos, e, cone):
     """Keep the pair list (built with skin at ``x0``; its blocks ``lay``, ``pos``) if
@@ -1154,7 +1154,7 @@ def _refresh_pairs(x0, x, n, skin, cell_start, cell_order, cx0, cy0, cinv, cnx, 
     return n_near, n_far, False, lay, pos
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def compact(exit_of, n, x, v, rad, u0, u_eff, tpre, toff, e, ids, tri, rho):
     """Drop the pedestrians who left (``exit_of[i] >= 0``) from the first ``n`` rows of the
     per-pedestrian arrays, the others moved up in their order (what ``arr[:m] =
@@ -1184,7 +1184,7 @@ def compact(exit_of, n, x, v, rad, u0, u_eff, tpre, toff, e, ids, tri, rho):
     return w
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def first_bad(x, v, n, vmax2):
     """Index of the first pedestrian with a non-finite state or a speed^2 above ``vmax2``
     (-1 if none)."""
