@@ -13,8 +13,11 @@ discretisation matters most (its run's mesh plays no part there)::
         [--rooms uo-100,example2,door] [--models sfm-validated,sfm-paper,eos,rdue,pw] \\
         [--plot docs/images/convergence.png]
 
-Every run's times are written to the JSON as soon as it ends, and a rerun with the same
-file skips what is there: an interrupted study loses nothing. ``docs/render_figures.py``
+Every run's times are written to the JSON as soon as it ends, with the fingerprint of
+its preset (``pedmesh.presets.fingerprint``: the values and the eos calibration), and a
+rerun with the same file skips what is there under the same preset: an interrupted study
+loses nothing, and a refit preset's runs are run again (those under another are dropped
+first). ``docs/render_figures.py``
 renders the tables of docs/validation/route_convergence.md from the file.
 """
 
@@ -65,10 +68,20 @@ def _key(room: str, label: str, area, seed, resolution=None, kernel=None,
             + (f"|x{refine:g}" if refine else ""))
 
 
+def _fingerprint(key: str) -> str | None:
+    """The current fingerprint of the preset of the run stored under ``key`` (None for a
+    model label this script no longer has)."""
+    from pedmesh.presets import fingerprint
+
+    label = key.split("|")[1]
+    return fingerprint(MODELS[label][1]) if label in MODELS else None
+
+
 def run_one(room: str, label: str, area, seed, resolution=None, kernel=None,
             refine=None) -> dict:
     """T50, T90, T100 [s] and the wall time of one run."""
     import pedmesh
+    from pedmesh.presets import fingerprint
 
     model, preset = MODELS[label]
     mo = None if area == "default" else {"max_area": float(area), "feature_area": None}
@@ -84,6 +97,7 @@ def run_one(room: str, label: str, area, seed, resolution=None, kernel=None,
                            params=params, t_end=1000.0, **kw)
     out = {k: res.times[k] for k in ("T50", "T90", "T100")}
     out["wall_s"] = time.perf_counter() - t0
+    out["preset"] = fingerprint(preset)
     out["cells"] = int((res.summary.get("mesh") or {}).get("triangles") or 0)
     rm = res.summary.get("route_mesh")
     out["route_mesh"] = int(rm["triangles"]) if rm else None
@@ -231,8 +245,12 @@ def main(argv=None) -> int:
     runs = {}
     if args.json.is_file():
         runs = json.loads(args.json.read_text())["results"].get("runs", {})
+    stale = [k for k, r in runs.items() if r.get("preset") != _fingerprint(k)]
+    for k in stale:  # (computed under another preset: a refit's, or unknown)
+        del runs[k]
     todo = [t for t in _plan(rooms, labels, resolutions) if _key(*t) not in runs]
-    print(f"{len(runs)} runs in {args.json}, {len(todo)} to go", flush=True)
+    print(f"{len(runs)} runs in {args.json} ({len(stale)} under another preset dropped), "
+          f"{len(todo)} to go", flush=True)
     for i, t in enumerate(todo):
         res = run_one(*t)
         runs[_key(*t)] = res

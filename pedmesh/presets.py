@@ -52,8 +52,8 @@ from typing import Any
 from . import parameters as P
 from .errors import ParameterError
 
-__all__ = ["Preset", "PRESETS", "DEFAULT_PRESET", "get_preset", "preset_overrides",
-           "resolve_preset"]
+__all__ = ["Preset", "PRESETS", "DEFAULT_PRESET", "fingerprint", "get_preset",
+           "preset_overrides", "resolve_preset"]
 
 TABLE1 = P.TABLE1_SOURCE
 WEIDMANN = P.WEIDMANN_SOURCE
@@ -227,6 +227,28 @@ def get_preset(name: str) -> Preset:
     if not isinstance(name, str) or name not in PRESETS:
         raise ParameterError(f"unknown preset {name!r} (presets: {', '.join(PRESETS)})")
     return PRESETS[name]
+
+
+def fingerprint(name: str) -> str:
+    """A short hash (16 hex digits) of what preset ``name`` sets: its values, its continuum
+    models' values, and the contents of the files a value names (the eos calibration).
+    Results computed under a preset are stale once its fingerprint changes (a refit): the
+    resumable studies (benchmarks/convergence.py) store it with each run and run again
+    what was computed under another."""
+    import hashlib
+
+    preset = get_preset(name)
+    h = hashlib.sha256()
+    for part in (preset.values, preset.continuum):
+        for k in sorted(part):
+            v = part[k].value
+            if isinstance(v, str) and v.endswith(".json") and Path(v).is_file():
+                # (the file's name and bytes, not where this checkout keeps it)
+                h.update(json.dumps([k, Path(v).name]).encode() + Path(v).read_bytes())
+            else:
+                h.update(json.dumps([k, v], sort_keys=True, default=str).encode())
+        h.update(b"|")
+    return h.hexdigest()[:16]
 
 
 def resolve_preset(explicit: str | None, room: Any = None) -> str:

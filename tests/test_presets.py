@@ -203,3 +203,31 @@ def test_presets_lists_a_models_declared_parameters(capsys):
     assert "\n  dt " not in out  # (the social force model's)
     assert f"{P.get('U_f').default:g} m/s" in out
     assert main(["presets", "--model", "nope"]) == 2
+
+
+def test_a_fingerprint_changes_with_the_values_and_the_files_they_name(tmp_path, monkeypatch):
+    import dataclasses
+
+    from pedmesh import presets
+    from pedmesh.presets import Value, fingerprint
+
+    prints = {name: fingerprint(name) for name in PRESETS}
+    assert len(set(prints.values())) == len(PRESETS)
+    assert all(len(p) == 16 and int(p, 16) >= 0 for p in prints.values())
+    a, b = tmp_path / "a" / "eos.json", tmp_path / "b" / "eos.json"
+    for f in (a, b):
+        f.parent.mkdir()
+        f.write_text('{"table": [1, 2]}')
+    base = PRESETS["weidmann"]
+
+    def with_values(**values):
+        p = dataclasses.replace(base, values={**base.values, **{
+            k: Value(v, "", "test") for k, v in values.items()}})
+        monkeypatch.setitem(presets.PRESETS, "weidmann", p)
+        return fingerprint("weidmann")
+
+    same_file = with_values(calibration=str(a))
+    assert with_values(calibration=str(b)) == same_file  # (where it is kept: the same)
+    b.write_text('{"table": [1, 3]}')
+    assert with_values(calibration=str(b)) != same_file  # (what it holds: another)
+    assert with_values(U_f=1.3) != with_values(U_f=1.34) == prints["weidmann"]
