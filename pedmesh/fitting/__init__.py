@@ -6,6 +6,7 @@ and writes into ``pedmesh/data/`` and ``docs/validation/``)::
     python -m pedmesh.fitting.validate       # the SFM against the Juelich experiments
     python -m pedmesh.fitting.fit_validated  # fits the validated preset (hours)
     python -m pedmesh.fitting.continuum_law  # the continuum models' table (2 minutes)
+    python -m pedmesh.fitting.after_fit      # everything a refit makes stale (hours)
 
 * :mod:`pedmesh.fitting.validate` simulates the Juelich corridor runs, a bottleneck series
   and free walking, and measures simulation and experiment alike
@@ -14,6 +15,9 @@ and writes into ``pedmesh/data/`` and ``docs/validation/``)::
 * :mod:`pedmesh.fitting.fit_validated` fits the ``validated`` preset's social force
   parameters to those runs. It writes ``pedmesh/data/validated.json`` and
   ``docs/validation/fit.md``, and logs every evaluation to ``docs/validation/*.csv``.
+* :mod:`pedmesh.fitting.after_fit` runs what follows a refit, in order and resumable: the
+  continuum's table and equation of state, the convergence study, the door probes, the
+  validation tables, eos against the SFM, RiMEA and the docs' figures.
 * :mod:`pedmesh.fitting.continuum_law` measures the fitted social force model's fundamental
   diagram. The result, ``pedmesh/data/fd_validated.json``, is the continuum models' speed
   table under the preset.
