@@ -259,3 +259,32 @@ def test_validated_crowd_presses_at_a_narrow_bottleneck(tmp_path):
     assert lo <= out["on"][0] <= hi
     assert out["on"][1] >= 5.5
     assert out["off"][1] < out["on"][1] - 0.5 and lo <= out["off"][0] <= hi
+
+
+def test_the_run_by_run_fundamental_diagram_does_not_depend_on_how_long_a_run_stays():
+    """pedmesh.fitting.validate.paired_fd: each run's speed in a bin against the same run's
+    in the experiment, weighted by the experiment's samples; a simulated run that stays
+    twice as long at a density moves the pooled speed but not this."""
+    from pedmesh.fitting.validate import paired_fd
+
+    def samples(n, rho, v):
+        return np.full(n, rho), np.full(n, v)
+
+    def runs(n_fast_sim):
+        fast_s, slow_s = samples(n_fast_sim, 2.0, 0.9), samples(20, 2.1, 0.6)
+        fast_e, slow_e = samples(100, 2.0, 0.95), samples(100, 1.9, 0.55)
+        few = samples(5, 2.0, 0.1)  # (too few samples in the simulation: left out)
+        return {"fast": (*fast_s, *fast_e), "slow": (*slow_s, *slow_e),
+                "few": (*few, *samples(50, 2.0, 0.8))}
+
+    a, b = paired_fd(runs(40), centres=(2.0,))[0], paired_fd(runs(400), centres=(2.0,))[0]
+    assert a["paired_runs"] == b["paired_runs"] == ["fast", "slow"]
+    assert a["speed_sim_paired"] == pytest.approx(0.5 * (0.9 + 0.6))
+    assert a["speed_exp_paired"] == pytest.approx(0.5 * (0.95 + 0.55))
+    assert b["speed_sim_paired"] == pytest.approx(a["speed_sim_paired"])
+    assert a["runs"]["few"]["n_sim"] == 5
+    pooled = [(40 * 0.9 + 20 * 0.6) / 60, (400 * 0.9 + 20 * 0.6) / 420]
+    assert abs(pooled[1] - pooled[0]) > 0.05  # (what the pooled bin does instead)
+    empty = paired_fd({"r": (np.array([1.0]), np.array([1.0]), np.array([]), np.array([]))},
+                      centres=(1.0,))[0]
+    assert np.isnan(empty["speed_sim_paired"]) and empty["paired_runs"] == []

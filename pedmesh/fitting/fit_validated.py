@@ -639,7 +639,11 @@ class Log:
         self.path = path
         self.rows: dict[tuple[float, ...], dict[str, Any]] = {}
         self.order: list[dict[str, Any]] = []
+        #: the file's columns (None: no file yet); rows are appended in their order
+        self.header: list[str] | None = None
         if path.is_file():
+            with path.open(newline="") as fh:
+                self.header = next(csv.reader(fh), None)
             with path.open(newline="") as fh:
                 for row in csv.DictReader(fh):
                     if row.get("fixed") != FIXED_KEY:
@@ -665,10 +669,16 @@ class Log:
         rec["fixed"] = FIXED_KEY
         self.rows[key_of(rec)] = rec
         self.order.append(rec)
-        new = not self.path.is_file()
+        new = not self.path.is_file() or not self.header
+        if not new and set(self.header) != set(COLUMNS):
+            # (rows of other columns appended under this header would shift under it)
+            raise SystemExit(f"{self.path} has other columns than this fit writes (first "
+                             f"different: {_first_difference(self.header, COLUMNS)}): give "
+                             "the fit another --csv")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         with self.path.open("a", newline="") as fh:
-            w = csv.DictWriter(fh, fieldnames=COLUMNS, extrasaction="ignore")
+            w = csv.DictWriter(fh, fieldnames=COLUMNS if new else self.header,
+                               extrasaction="ignore")
             if new:
                 w.writeheader()
             w.writerow({k: _fmt(rec.get(k)) for k in COLUMNS})
@@ -677,6 +687,12 @@ class Log:
 
     def best(self) -> dict[str, Any]:
         return min(self.order, key=lambda r: (r["objective"], r["eval"]))
+
+
+def _first_difference(a: list[str], b: list[str]) -> str:
+    """The first column of ``a`` not in ``b`` (or of ``b`` not in ``a``)."""
+    only = [x for x in a if x not in b] or [f"no {y!r}" for y in b if y not in a]
+    return repr(only[0]) if only else "none"
 
 
 def _num(v: str):

@@ -23,3 +23,23 @@ def test_an_unknown_start_is_refused(tmp_path):
     log = _log(tmp_path, [("grid", 6.0)])
     with pytest.raises(SystemExit, match="--nm-from 7: no such evaluation"):
         fv.nm_start(log, 7)
+
+
+def test_rows_are_appended_in_the_files_column_order_and_other_columns_refused(tmp_path,
+                                                                              monkeypatch):
+    import csv
+
+    fv.configure("corner")
+    rec = {c: 1.0 for c in fv.COLUMNS}
+    rec.update({n: 0.5 + 0.01 * i for i, n in enumerate(fv.NAMES)})
+    rec.update({"failed": 0.0, "clogged": 0.0})
+    path = tmp_path / "evals.csv"
+    path.write_text(",".join(reversed(fv.COLUMNS)) + "\n")  # (an older fit's order)
+    log = fv.Log(path)
+    monkeypatch.setattr(fv, "objective", lambda r: 7.0)  # (not a real evaluation)
+    log.add(rec, "nm")
+    row = next(csv.DictReader(path.open()))
+    assert row["objective"] == "7.0" and row[fv.NAMES[0]] == "0.5"
+    path.write_text(",".join(fv.COLUMNS[:-1] + ["something else"]) + "\n")
+    with pytest.raises(SystemExit, match="other columns than this fit writes"):
+        fv.Log(path).add(rec, "nm")
