@@ -667,23 +667,28 @@ class Log:
         rec["objective"] = objective(rec)
         rec["date"] = datetime.datetime.now().isoformat(timespec="seconds")
         rec["fixed"] = FIXED_KEY
+        self.check_writable()
         self.rows[key_of(rec)] = rec
         self.order.append(rec)
         new = not self.path.is_file() or not self.header
-        if not new and set(self.header) != set(COLUMNS):
-            # (rows of other columns appended under this header would shift under it)
-            raise SystemExit(f"{self.path} has other columns than this fit writes (first "
-                             f"different: {_first_difference(self.header, COLUMNS)}): give "
-                             "the fit another --csv")
         self.path.parent.mkdir(parents=True, exist_ok=True)
         with self.path.open("a", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=COLUMNS if new else self.header,
                                extrasaction="ignore")
             if new:
                 w.writeheader()
+                self.header = list(COLUMNS)
             w.writerow({k: _fmt(rec.get(k)) for k in COLUMNS})
         print(line_of(rec), flush=True)
         return rec
+
+    def check_writable(self) -> None:
+        """Refuse a CSV of other columns than this fit writes (rows appended under its
+        header would shift under it), before any run rather than after one."""
+        if self.header and set(self.header) != set(COLUMNS):
+            raise SystemExit(f"{self.path} has other columns than this fit writes (first "
+                             f"different: {_first_difference(self.header, COLUMNS)}): give "
+                             "the fit another --csv")
 
     def best(self) -> dict[str, Any]:
         return min(self.order, key=lambda r: (r["objective"], r["eval"]))
@@ -1134,6 +1139,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     log = Log(csv_path)
     print(f"{log.resumed} evaluations read from {csv_path}", flush=True)
+    if not args.report_only:
+        log.check_writable()
     nm = None
     jobs = max(1, args.jobs)
     ctx = multiprocessing.get_context("spawn")  # fresh interpreters: NUMBA_NUM_THREADS holds

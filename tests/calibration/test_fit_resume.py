@@ -40,6 +40,14 @@ def test_rows_are_appended_in_the_files_column_order_and_other_columns_refused(t
     log.add(rec, "nm")
     row = next(csv.DictReader(path.open()))
     assert row["objective"] == "7.0" and row[fv.NAMES[0]] == "0.5"
+    fresh = tmp_path / "new.csv"  # (a new file: one header, then the rows)
+    log = fv.Log(fresh)
+    for i in range(2):
+        log.add({**rec, fv.NAMES[0]: 0.6 + 0.01 * i}, "nm")
+    lines = fresh.read_text().splitlines()
+    assert len(lines) == 3 and lines[0] == ",".join(fv.COLUMNS)
     path.write_text(",".join(fv.COLUMNS[:-1] + ["something else"]) + "\n")
+    with pytest.raises(SystemExit, match="other columns than this fit writes"):
+        fv.Log(path).check_writable()
     with pytest.raises(SystemExit, match="other columns than this fit writes"):
         fv.Log(path).add(rec, "nm")
