@@ -68,15 +68,6 @@ def _key(room: str, label: str, area, seed, resolution=None, kernel=None,
             + (f"|x{refine:g}" if refine else ""))
 
 
-def _fingerprint(key: str) -> str | None:
-    """The current fingerprint of the preset of the run stored under ``key`` (None for a
-    model label this script no longer has)."""
-    from pedmesh.presets import fingerprint
-
-    label = key.split("|")[1]
-    return fingerprint(MODELS[label][1]) if label in MODELS else None
-
-
 def run_one(room: str, label: str, area, seed, resolution=None, kernel=None,
             refine=None) -> dict:
     """T50, T90, T100 [s] and the wall time of one run."""
@@ -245,7 +236,10 @@ def main(argv=None) -> int:
     runs = {}
     if args.json.is_file():
         runs = json.loads(args.json.read_text())["results"].get("runs", {})
-    stale = [k for k, r in runs.items() if r.get("preset") != _fingerprint(k)]
+    from pedmesh.presets import fingerprint
+
+    current = {label: fingerprint(preset) for label, (_, preset) in MODELS.items()}
+    stale = [k for k, r in runs.items() if r.get("preset") != current.get(k.split("|")[1])]
     for k in stale:  # (computed under another preset: a refit's, or unknown)
         del runs[k]
     todo = [t for t in _plan(rooms, labels, resolutions) if _key(*t) not in runs]

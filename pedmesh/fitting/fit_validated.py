@@ -643,9 +643,9 @@ class Log:
         self.header: list[str] | None = None
         if path.is_file():
             with path.open(newline="") as fh:
-                self.header = next(csv.reader(fh), None)
-            with path.open(newline="") as fh:
-                for row in csv.DictReader(fh):
+                reader = csv.DictReader(fh)
+                self.header = reader.fieldnames
+                for row in reader:
                     if row.get("fixed") != FIXED_KEY:
                         continue
                     rec = {k: _num(v) for k, v in row.items()}

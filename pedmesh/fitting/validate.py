@@ -383,21 +383,18 @@ def paired_fd(by_run: dict[str, tuple], centres=FD_DENSITIES,
     ``least`` samples there, each weighted by the experiment's samples: ``speed_sim_paired``
     and ``speed_exp_paired`` [m/s], ``paired_runs`` (their names) and ``runs`` (each run's
     counts and speeds)."""
+    bins = {name: (V.bin_fd(ds, vs, centres, half_width), V.bin_fd(de, ve, centres, half_width))
+            for name, (ds, vs, de, ve) in by_run.items()}
     out = []
-    for c in centres:
-        per, num_s, num_e, den = {}, 0.0, 0.0, 0.0
-        for name, (ds, vs, de, ve) in by_run.items():
-            s = V.bin_fd(ds, vs, (c,), half_width)[0]
-            e = V.bin_fd(de, ve, (c,), half_width)[0]
-            per[name] = {"n_sim": s["n"], "speed_sim": s["speed"], "n_exp": e["n"],
-                         "speed_exp": e["speed"]}
-            if s["n"] >= least and e["n"] >= least:
-                num_s += e["n"] * s["speed"]
-                num_e += e["n"] * e["speed"]
-                den += e["n"]
+    for k in range(len(centres)):
+        per = {name: {"n_sim": s[k]["n"], "speed_sim": s[k]["speed"], "n_exp": e[k]["n"],
+                      "speed_exp": e[k]["speed"]} for name, (s, e) in bins.items()}
         paired = [n for n, r in per.items() if r["n_sim"] >= least and r["n_exp"] >= least]
-        out.append({"speed_sim_paired": num_s / den if den else math.nan,
-                    "speed_exp_paired": num_e / den if den else math.nan,
+        w = sum(per[n]["n_exp"] for n in paired)
+        out.append({"speed_sim_paired": sum(per[n]["n_exp"] * per[n]["speed_sim"]
+                                            for n in paired) / w if w else math.nan,
+                    "speed_exp_paired": sum(per[n]["n_exp"] * per[n]["speed_exp"]
+                                            for n in paired) / w if w else math.nan,
                     "paired_runs": paired, "runs": per})
     return out
 
