@@ -32,6 +32,16 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
     existed, from #7 (``crowd_stretch`` 1.6, F = 5.44; resume with ``--nm-from 7``, whose
     simplex is #8-#14 and two more). 500-600 s an evaluation on two cores.
 
+``--law clearance`` (issue 44, under way): ``--law corner``'s model with the routes
+    keeping 0.2 m off walls and jambs (``route_clearance``, SFPE's boundary layer at a
+    corridor wall) instead of 0.5 m, which steered everyone through a door's middle until
+    a second file fit (docs/validation/door_physics.md), and the Voronoi speeds at 1/2/3
+    /m^2 compared run by run (``pedmesh.fitting.validate.paired_fd``: each run's speed in a
+    bin against the experiment's, weighted by the experiment's samples) instead of pooled,
+    whose mix of runs is what scattered between realisations. Nelder-Mead
+    (``fit_evaluations_clearance.csv``, which resumes) from the shipped point with the
+    table's knots at 1-3 /m^2 scaled down (``LAWS["clearance"]``).
+
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
     fitted with the doors in a thin wall among the targets (``LAWS["converged"]``).
@@ -323,6 +333,29 @@ LAWS["corner"] = {
              "mesh with its corner zone (`pedmesh.mesh.route_mesh.CORNER_EDGE_FRACTION`), "
              "with which the route converges at doors."),
 }
+# issue 44, clearance: the corner model with the routes keeping a boundary layer's width
+# off walls and jambs (route_clearance 0.2 m, SFPE's 8 in at corridor walls) instead of
+# 0.5 m, which steered everyone through a door's middle until a second file fit (J/b
+# dipped to 1.67 at 1.2 m; docs/validation/door_physics.md); the Voronoi speeds compared
+# run by run (a new CSV: each run's samples are columns); Nelder-Mead from the shipped
+# point with the table's knots at 1-3 /m^2 scaled down (two probes of the corridors with the
+# entrance as a door, the knots at 0.90/0.80/0.80 and 0.85/0.70/0.70 of the shipped ones:
+# uo-145 +23/+16 %, uo-095 +28/+19 %, the speed at 2 /m^2 +23/+15 % run by run; the start
+# is the second with g20 and g30 a further 11 % lower)
+LAWS["clearance"] = {
+    **LAWS["corner"],
+    "fixed": {**LAWS["corner"]["fixed"], "route_clearance": 0.2},
+    "fit": {k: {**v, "grid": (start,)} for (k, v), start in zip(
+        LAWS["converged"]["fit"].items(),
+        (0.99, 0.785, 0.39, 0.185, 0.114, 1.45, 1.77, 3.299, 0.3))},
+    "fd": "paired",
+    "csv": "fit_evaluations_clearance.csv",
+    "note": ("Nelder-Mead from the shipped point with its table's knots at 1-3 /m^2 scaled "
+             "down (the grid's one point), the routes keeping 0.2 m off walls and jambs "
+             "(`route_clearance`; the shipped 0.5 m made the long openings' J/b dip at "
+             "1.0-1.3 m, docs/validation/door_physics.md), and the Voronoi speeds at 1/2/3 "
+             "/m^2 compared run by run (`pedmesh.fitting.validate.paired_fd`)."),
+}
 #: [ped/m^2] where the table law reaches 0
 TABLE_ZERO = 5.6
 LAW = "table"
@@ -348,7 +381,12 @@ WIDTHS: tuple = LAWS[LAW].get("widths", (0.8, 1.2, 1.8, 2.5))  # [m]
 #: [m] the doors in a thin wall (pedmesh.fitting.validate's "walldoor" part), if the law has
 DOOR_WIDTHS: tuple = LAWS[LAW].get("door_widths", ())
 FRONT: bool = LAWS[LAW].get("front", False)
+#: the Voronoi speeds compared run by run (:func:`pedmesh.fitting.validate.paired_fd`) in the
+#: objective, not pooled over the runs, if the law says so
+PAIRED_FD: bool = LAWS[LAW].get("fd") == "paired"
 FD_RHOS = (1.0, 2.0, 3.0)  # [1/m^2]
+#: a run's columns of a density bin (PAIRED_FD) and paired_fd's names of them
+RUN_FD_KEYS = {"v_sim": "speed_sim", "n_sim": "n_sim", "v_exp": "speed_exp", "n_exp": "n_exp"}
 BOTTLENECK_REF = 1.9  # [1/(m s)]
 BOTTLENECK_BAND = (1.6, 2.2)  # [1/(m s)]
 TOL_CORRIDOR = 0.10
@@ -394,6 +432,13 @@ def _columns() -> list[str]:
         err += [f"err/fd{t}/rho={d:g}" for d in FD_RHOS]
         ref += [f"J_exit_exp{t}/{r}" for r in CORRIDOR_RUNS] + [f"v_exp{t}/rho={d:g}"
                                                                  for d in FD_RHOS]
+        if PAIRED_FD:
+            sim += [f"v_sim_paired{t}/rho={d:g}" for d in FD_RHOS]
+            ref += [f"v_exp_paired{t}/rho={d:g}" for d in FD_RHOS]
+            sim += [f"{q}{t}/{r}/rho={d:g}" for q in ("v_sim", "n_sim") for r in CORRIDOR_RUNS
+                    for d in FD_RHOS]
+            ref += [f"{q}{t}/{r}/rho={d:g}" for q in ("v_exp", "n_exp") for r in CORRIDOR_RUNS
+                    for d in FD_RHOS]
     sim += [f"Jb_sim/b={b:g}" for b in WIDTHS]
     err += [f"err/bottleneck/b={b:g}" for b in WIDTHS]
     if FRONT:
@@ -415,7 +460,7 @@ COLUMNS = _columns()
 def configure(law: str) -> None:
     """Make ``law`` (a key of :data:`LAWS`) the fit this process runs."""
     global LAW, FIXED, FIT, SEEDS, NAMES, FIXED_KEY, COLUMNS, ENTRANCES, WIDTHS, FRONT
-    global DOOR_WIDTHS, FRONT_MIN
+    global DOOR_WIDTHS, FRONT_MIN, PAIRED_FD
     if law not in LAWS:
         raise SystemExit(f"unknown law {law!r} (laws: {', '.join(LAWS)})")
     LAW, FIXED, FIT, SEEDS = law, LAWS[law]["fixed"], LAWS[law]["fit"], LAWS[law]["seeds"]
@@ -424,6 +469,7 @@ def configure(law: str) -> None:
     DOOR_WIDTHS = LAWS[law].get("door_widths", ())
     FRONT = LAWS[law].get("front", False)
     FRONT_MIN = LAWS[law].get("front_min", 5.5)
+    PAIRED_FD = LAWS[law].get("fd") == "paired"
     NAMES = tuple(FIT)
     FIXED_KEY = _fixed_key()
     COLUMNS = _columns()
@@ -530,6 +576,9 @@ def evaluate(x: dict[str, float], data_dir: str | None = None,
             rec[f"v_sim{t}/rho={d:g}"] = fd["speed_sim"]
             rec[f"n_sim{t}/rho={d:g}"] = fd["n_sim"]
             rec[f"v_exp{t}/rho={d:g}"] = fd["speed_exp"] if fd["n_exp"] else math.nan
+            for name, r in (fd.get("runs") or {}).items() if PAIRED_FD else ():
+                for col, key in RUN_FD_KEYS.items():  # (each run's samples in the bin)
+                    rec[f"{col}{t}/{name}/rho={d:g}"] = float(r[key])
         # the long openings and the doors in a wall: (series, flow key, suffix)
         for series, jkey, sfx in (("bottleneck", "Jb", ""), ("walldoor", "Jw", "_w")):
             for row in res.get(series) or []:
@@ -566,6 +615,8 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
             out[f"n_sim{t}/rho={d:g}"] = float(n.sum())
             out[f"v_sim{t}/rho={d:g}"] = float(np.sum(n[ok] * v[ok]) / n[ok].sum()) \
                 if ok.any() else math.nan
+    if PAIRED_FD:
+        _merge_paired(out, recs)
     for k in ("failed", "clogged", "seconds"):
         out[k] = float(sum(float(r[k]) for r in recs))
     out["rms_all"] = float(np.mean([float(r["rms_all"]) for r in recs]))
@@ -577,8 +628,8 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
             out[f"err/corridor{t}/{name}/J_exit"] = _rel(out[f"J_exit_sim{t}/{name}"],
                                                          out[f"J_exit_exp{t}/{name}"])
         for d in FD_RHOS:
-            out[f"err/fd{t}/rho={d:g}"] = _rel(float(out[f"v_sim{t}/rho={d:g}"]),
-                                               float(out[f"v_exp{t}/rho={d:g}"]))
+            sim, ref = fd_keys(t, d)
+            out[f"err/fd{t}/rho={d:g}"] = _rel(float(out[sim]), float(out[ref]))
     for b in WIDTHS:
         out[f"err/bottleneck/b={b:g}"] = (band_error(out[f"Jb_sim/b={b:g}"], b) if FRONT
                                           else _rel(out[f"Jb_sim/b={b:g}"], BOTTLENECK_REF))
@@ -590,6 +641,43 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
         if b in FRONT_WIDTHS:
             out[f"err/front_w/b={b:g}"] = front_error(float(out[f"rho_front_w/b={b:g}"]))
     return out
+
+
+def _merge_paired(out: dict[str, Any], recs: list[dict[str, Any]]) -> None:
+    """The run-by-run Voronoi speeds of the realisations ``recs`` into ``out``: each run's
+    simulated speed in a bin the mean of its realisations' samples, then
+    :func:`pedmesh.fitting.validate.paired_fd`'s comparison over the runs that have at
+    least ``FD_PAIR_MIN`` samples there in the experiment and, on average over the
+    realisations, in the simulation, each weighted by the experiment's samples."""
+    from pedmesh.fitting.validate import FD_PAIR_MIN
+
+    for ent in ENTRANCES:
+        t = _suffix(ent)
+        for d in FD_RHOS:
+            w = sim = ref = 0.0
+            for name in CORRIDOR_RUNS:
+                key = f"{t}/{name}/rho={d:g}"
+                n = np.array([float(r.get(f"n_sim{key}", 0.0)) for r in recs])
+                v = np.array([float(r.get(f"v_sim{key}", math.nan)) for r in recs])
+                ok = n > 0
+                out[f"n_sim{key}"] = float(n.sum())
+                out[f"v_sim{key}"] = float(np.sum(n[ok] * v[ok]) / n[ok].sum()) \
+                    if ok.any() else math.nan
+                n_exp = float(recs[0].get(f"n_exp{key}", 0.0))
+                if n.mean() >= FD_PAIR_MIN and n_exp >= FD_PAIR_MIN:
+                    w += n_exp
+                    sim += n_exp * out[f"v_sim{key}"]
+                    ref += n_exp * float(recs[0][f"v_exp{key}"])
+            out[f"v_sim_paired{t}/rho={d:g}"] = sim / w if w else math.nan
+            out[f"v_exp_paired{t}/rho={d:g}"] = ref / w if w else math.nan
+
+
+def fd_keys(t: str, d: float) -> tuple[str, str]:
+    """The record's simulated and reference Voronoi speed at density ``d`` of the entrance
+    tagged ``t``: run by run if the law compares so (PAIRED_FD), else pooled."""
+    if PAIRED_FD:
+        return f"v_sim_paired{t}/rho={d:g}", f"v_exp_paired{t}/rho={d:g}"
+    return f"v_sim{t}/rho={d:g}", f"v_exp{t}/rho={d:g}"
 
 
 def evaluate_point(x: dict[str, float], pool, data_dir: str | None) -> dict[str, Any]:
@@ -610,7 +698,7 @@ def objective(rec: dict[str, Any]) -> float:
             e = float(rec[f"err/corridor{t}/{r}/J_exit"])
             f += (e / TOL_CORRIDOR) ** 2 if math.isfinite(e) else 0.0
         for d in FD_RHOS:
-            if not math.isfinite(float(rec[f"v_exp{t}/rho={d:g}"])):
+            if not math.isfinite(float(rec[fd_keys(t, d)[1]])):
                 continue  # the experiment has no samples at this density: no target
             e = float(rec[f"err/fd{t}/rho={d:g}"])
             f += ((e if math.isfinite(e) else MISSING_FD_ERROR) / TOL_FD) ** 2
@@ -860,14 +948,16 @@ def targets(rec: dict[str, Any], free: dict[str, Any] | None) -> list[dict[str, 
                         "err": e, "band": "within 10 %",
                         "pass": math.isfinite(e) and abs(e) <= TOL_CORRIDOR})
         for d in FD_RHOS:
-            ref = float(rec[f"v_exp{t}/rho={d:g}"])
+            sim_key, ref_key = fd_keys(t, d)
+            ref = float(rec[ref_key])
             if not math.isfinite(ref):
                 continue
             e = float(rec[f"err/fd{t}/rho={d:g}"])
+            how = "run by run, " if PAIRED_FD else ""
             out.append({"key": f"fd{t}/rho={d:g}",
-                        "target": (f"Voronoi speed at {d:g} /m^2 [m/s] (n sim = "
+                        "target": (f"Voronoi speed at {d:g} /m^2 [m/s] ({how}n sim = "
                                    f"{float(rec[f'n_sim{t}/rho={d:g}']):.0f}){tag}"),
-                        "sim": float(rec[f"v_sim{t}/rho={d:g}"]), "ref": ref, "err": e,
+                        "sim": float(rec[sim_key]), "ref": ref, "err": e,
                         "band": "within 15 %", "pass": math.isfinite(e) and abs(e) <= TOL_FD})
     for b in WIDTHS:
         sim = float(rec[f"Jb_sim/b={b:g}"])
@@ -1115,7 +1205,8 @@ def main(argv: list[str] | None = None) -> int:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--law", choices=tuple(LAWS), default="crowd",
                     help="which fit: 'exits' (the shipped one: 'converged' with people "
-                         "beyond the exits), 'converged', 'crowd' (the default, dense crowds on "
+                         "beyond the exits), 'clearance' (issue 44's refit with routes 0.2 m "
+                         "off walls), 'converged', 'crowd' (the default, dense crowds on "
                          "top of the table fit), 'table' or 'weidmann' (earlier fits, kept for "
                          "their record)")
     ap.add_argument("--jobs", type=int, default=1, help="evaluations at once (processes)")

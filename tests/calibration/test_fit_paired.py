@@ -1,0 +1,71 @@
+"""The clearance fit compares the Voronoi speeds run by run: a run's realisations pool
+their samples, and the runs are weighted by the experiment's samples, not by how long the
+simulation lingered in the bin."""
+
+import math
+
+import pytest
+
+from pedmesh.fitting import fit_validated as fv
+
+
+@pytest.fixture
+def clearance():
+    fv.configure("clearance")
+    yield
+    fv.configure("corner")
+
+
+def _rec(samples):
+    """A realisation's record: ``samples[run][rho] = (n_sim, v_sim, n_exp, v_exp)``."""
+    rec = {}
+    for ent in fv.ENTRANCES:
+        t = fv._suffix(ent)
+        for run in fv.CORRIDOR_RUNS:
+            for d in fv.FD_RHOS:
+                n, v, ne, ve = samples.get(run, {}).get(d, (0, math.nan, 0, math.nan))
+                key = f"{t}/{run}/rho={d:g}"
+                rec.update({f"n_sim{key}": n, f"v_sim{key}": v, f"n_exp{key}": ne,
+                            f"v_exp{key}": ve})
+    return rec
+
+
+def test_runs_are_weighted_by_the_experiments_samples_not_the_simulations(clearance):
+    a, b = fv.CORRIDOR_RUNS[:2]
+    # run a lingers at 2 /m^2 in the first realisation (300 samples), b hardly (20)
+    r1 = _rec({a: {2.0: (300, 0.6, 100, 0.62)}, b: {2.0: (20, 0.9, 100, 0.85)}})
+    r2 = _rec({a: {2.0: (30, 0.7, 100, 0.62)}, b: {2.0: (200, 1.0, 100, 0.85)}})
+    out = {}
+    fv._merge_paired(out, [r1, r2])
+    t = fv._suffix(fv.ENTRANCES[0])
+    va = (300 * 0.6 + 30 * 0.7) / 330
+    vb = (20 * 0.9 + 200 * 1.0) / 220
+    assert out[f"v_sim{t}/{a}/rho=2"] == pytest.approx(va)
+    assert out[f"v_sim_paired{t}/rho=2"] == pytest.approx(0.5 * (va + vb))
+    assert out[f"v_exp_paired{t}/rho=2"] == pytest.approx(0.5 * (0.62 + 0.85))
+    # a bin no run fills in both: no comparison
+    assert math.isnan(out[f"v_sim_paired{t}/rho=3"])
+    assert fv.fd_keys(t, 2.0) == (f"v_sim_paired{t}/rho=2", f"v_exp_paired{t}/rho=2")
+
+
+def test_a_run_with_too_few_samples_does_not_count(clearance):
+    from pedmesh.fitting.validate import FD_PAIR_MIN
+
+    a, b = fv.CORRIDOR_RUNS[:2]
+    few = FD_PAIR_MIN - 1
+    r = _rec({a: {1.0: (500, 1.1, 100, 1.2)}, b: {1.0: (few, 0.2, 100, 1.3)}})
+    out = {}
+    fv._merge_paired(out, [r, r])
+    t = fv._suffix(fv.ENTRANCES[0])
+    assert out[f"v_sim_paired{t}/rho=1"] == pytest.approx(1.1)
+    assert out[f"v_exp_paired{t}/rho=1"] == pytest.approx(1.2)
+
+
+def test_the_clearance_law_writes_each_runs_samples(clearance):
+    assert fv.PAIRED_FD and fv.FIXED["route_clearance"] == 0.2
+    for ent in fv.ENTRANCES:
+        t = fv._suffix(ent)
+        assert f"v_exp_paired{t}/rho=2" in fv.COLUMNS
+        assert f"n_sim{t}/{fv.CORRIDOR_RUNS[-1]}/rho=3" in fv.COLUMNS
+    fv.configure("corner")
+    assert not fv.PAIRED_FD and "v_sim_paired/rho=2" not in fv.COLUMNS
