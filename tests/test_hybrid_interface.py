@@ -188,3 +188,41 @@ def test_a_coupled_run_keeps_every_person():
     groups = run.groups.max() + 1
     assert groups == 2 and c.accounts < groups and c.cells < 0.5
     assert c.out_continuum > N - groups - 0.5
+
+
+def test_a_passing_crowd_switches_each_cell_twice_despite_a_flickering_density():
+    """A bump of density [ped/m^2] walks along a line of cells at 1 m/s, its density
+    flickering by +-0.3 ped/m^2 each step: every cell it passes joins the zone once and
+    leaves it once; a fixed cell never leaves; a thin crowd never joins."""
+    from pedmesh.models.hybrid import DensityTrigger
+
+    x = np.arange(60) * 0.5  # [m] cell centres
+    fixed = np.zeros(len(x), bool)
+    fixed[:3] = True
+    trig = DensityTrigger(fixed, rho_on=3.0, rho_off=2.0, dwell=1.0)
+    rng = np.random.default_rng(1)
+    for k in range(400):
+        t = 0.1 * k
+        rho = 4.0 * np.exp(-0.5 * ((x - (t - 5.0)) / 2.0) ** 2)
+        rho += rng.uniform(-0.3, 0.3, len(x))
+        trig.update(np.maximum(rho, 0.0), t)
+        assert trig.zone[:3].all()
+    passed = (x > 2.0) & (x < 30.0)
+    assert np.all(trig.switches[passed] <= 2) and np.all(trig.switches[10:50] == 2)
+    assert trig.switches[:3].sum() == 0
+    thin = DensityTrigger(np.zeros(5, bool), rho_on=3.0, rho_off=2.0, dwell=0.0)
+    assert len(thin.update(np.full(5, 2.9), 0.0)[0]) == 0 and not thin.zone.any()
+
+
+def test_density_trigger_refuses_bad_thresholds():
+    from pedmesh.errors import ParameterError
+    from pedmesh.models.hybrid import DensityTrigger
+
+    for kw, match in (({"rho_on": 2.0, "rho_off": 2.0, "dwell": 1.0}, "must be below"),
+                      ({"rho_on": -1.0, "rho_off": 0.5, "dwell": 1.0}, "rho_on"),
+                      ({"rho_on": 3.0, "rho_off": 2.0, "dwell": -1.0}, "dwell")):
+        with pytest.raises(ParameterError, match=match):
+            DensityTrigger(np.zeros(3, bool), **kw)
+    trig = DensityTrigger(np.zeros(3, bool), rho_on=3.0, rho_off=2.0, dwell=1.0)
+    with pytest.raises(ParameterError, match="2 densities for 3 cells"):
+        trig.update(np.zeros(2), 0.0)

@@ -4,7 +4,8 @@ a mesh into an agent zone and the continuum's part with an exact, per-edge accou
 what crosses the interface.
 
 * :mod:`~pedmesh.models.hybrid.zones`: which triangles belong to the agents (fixed polygons,
-  the surroundings of exits);
+  the surroundings of exits), and a density trigger with hysteresis that moves cells in
+  and out as the crowd comes and goes (not yet used by the coupled run);
 * :mod:`~pedmesh.models.hybrid.interface`: the continuum's sub-mesh, each interface edge an
   exit of its own, so that the finite-volume solver counts what leaves through it exactly
   (its outflow per exit), and the deposit of an agent's mass and momentum into the cell it
@@ -15,6 +16,7 @@ what crosses the interface.
 
 from .coupling import HybridCount, HybridRun
 from .interface import ContinuumPart, deposit, split_mesh
-from .zones import zone_cells
+from .zones import DensityTrigger, zone_cells
 
-__all__ = ["ContinuumPart", "HybridCount", "HybridRun", "deposit", "split_mesh", "zone_cells"]
+__all__ = ["ContinuumPart", "DensityTrigger", "HybridCount", "HybridRun", "deposit", "split_mesh",
+           "zone_cells"]
