@@ -1087,8 +1087,9 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         f"Weighted least squares of relative errors (each over its tolerance: corridor exit "
         + ("flows 10 % with both entrances (door and replay), bottleneck J/b 10 % outside the "
            f"published band, densities in front of 0.5-1.2 m openings 10 % outside "
-           f"{FRONT_MIN:g}-{FRONT_MAX:g} /m^2, Voronoi speeds at 1/2/3 /m^2 15 % with both "
-           "entrances"
+           f"{FRONT_MIN:g}-{FRONT_MAX:g} /m^2, Voronoi speeds at 1/2/3 /m^2 "
+           + ("compared run by run (paired_fd) " if PAIRED_FD else "")
+           + "15 % with both entrances"
            if FRONT else "flows 10 %, bottleneck J/b 0.3/1.9, Voronoi speeds at 1/2/3 /m^2 "
            "15 %")
         + f"; +{PENALTY:g} per failed or clogged run), measured by "
@@ -1186,7 +1187,7 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                   + " / ".join(" ".join(_pc(r[f"err/fd{_suffix(e)}/rho={d:g}"])
                                         for d in FD_RHOS) for e in ENTRANCES)
                   + f" | {float(r['seconds']):.0f} |")
-    if LAW in ("table", "crowd", "converged", "exits"):  # (the preset reads what it wrote)
+    if LAW in ("table", "crowd", "converged", "exits", "clearance"):  # (the preset reads it)
         cmd = ("python -m pedmesh.fitting.validate --preset validated --entrance "
                f"{ENTRANCE} --bottleneck{' --walldoor' if DOOR_WIDTHS else ''} --free "
                "--seeds 1,2,3,4,5,6 --out docs/validation/validated")
