@@ -698,8 +698,9 @@ def objective(rec: dict[str, Any]) -> float:
             e = float(rec[f"err/corridor{t}/{r}/J_exit"])
             f += (e / TOL_CORRIDOR) ** 2 if math.isfinite(e) else 0.0
         for d in FD_RHOS:
-            if not math.isfinite(float(rec[fd_keys(t, d)[1]])):
+            if not math.isfinite(float(rec[f"v_exp{t}/rho={d:g}"])):
                 continue  # the experiment has no samples at this density: no target
+            # (a simulation without the runs' samples there, pooled or run by run, misses)
             e = float(rec[f"err/fd{t}/rho={d:g}"])
             f += ((e if math.isfinite(e) else MISSING_FD_ERROR) / TOL_FD) ** 2
     tol_b = TOL_BAND if FRONT else TOL_BOTTLENECK
@@ -949,9 +950,11 @@ def targets(rec: dict[str, Any], free: dict[str, Any] | None) -> list[dict[str, 
                         "pass": math.isfinite(e) and abs(e) <= TOL_CORRIDOR})
         for d in FD_RHOS:
             sim_key, ref_key = fd_keys(t, d)
+            if not math.isfinite(float(rec[f"v_exp{t}/rho={d:g}"])):
+                continue  # (no samples in the experiment: no target)
             ref = float(rec[ref_key])
-            if not math.isfinite(ref):
-                continue
+            if not math.isfinite(ref):  # (no run paired: the pooled reference, missed)
+                ref = float(rec[f"v_exp{t}/rho={d:g}"])
             e = float(rec[f"err/fd{t}/rho={d:g}"])
             how = "run by run, " if PAIRED_FD else ""
             out.append({"key": f"fd{t}/rho={d:g}",

@@ -69,3 +69,25 @@ def test_the_clearance_law_writes_each_runs_samples(clearance):
         assert f"n_sim{t}/{fv.CORRIDOR_RUNS[-1]}/rho=3" in fv.COLUMNS
     fv.configure("corner")
     assert not fv.PAIRED_FD and "v_sim_paired/rho=2" not in fv.COLUMNS
+
+
+def test_a_bin_the_simulation_does_not_reach_run_by_run_still_counts(clearance):
+    """The experiment has samples at 3 /m^2 but no simulated run has enough there: the
+    paired comparison is empty, and the objective counts the bin as missed (as pooled),
+    rather than dropping the target."""
+    rec = {k: 0.0 for k in fv.COLUMNS if k.startswith(("err/", "J_exit", "Jb_sim", "Jw_sim",
+                                                          "rho_front", "stuck"))}
+    rec.update({"failed": 0.0, "clogged": 0.0})
+    for ent in fv.ENTRANCES:
+        t = fv._suffix(ent)
+        for d in fv.FD_RHOS:
+            rec[f"v_exp{t}/rho={d:g}"] = 1.0
+            rec[f"n_sim{t}/rho={d:g}"] = 0.0
+            rec[f"v_sim_paired{t}/rho={d:g}"] = rec[f"v_exp_paired{t}/rho={d:g}"] = 1.0
+    base = fv.objective(rec)
+    t = fv._suffix(fv.ENTRANCES[0])
+    rec[f"v_sim_paired{t}/rho=3"] = rec[f"v_exp_paired{t}/rho=3"] = math.nan
+    rec[f"err/fd{t}/rho=3"] = math.nan
+    assert fv.objective(rec) == pytest.approx(base + (fv.MISSING_FD_ERROR / fv.TOL_FD) ** 2)
+    target = next(x for x in fv.targets(rec, None) if x["key"] == f"fd{t}/rho=3")
+    assert not target["pass"] and target["ref"] == 1.0
