@@ -17,6 +17,20 @@ shipped fit's), ``--only NAME,...``, ``--from NAME`` (drops the marks of that st
 those after it), ``--logs DIR`` (default ``runs/after_fit``), ``--dry-run`` (prints the
 commands). The chain stops at the first step that fails; its log names why.
 
+To see what a candidate point would do before making it the preset (e.g. to eos), run the
+first steps in a worktree of their own, where they write its pedmesh/data and not this
+checkout's (each step reads and writes the checkout it runs from; the worktree compiles
+its kernels once, some minutes)::
+
+    git worktree add /tmp/preview HEAD
+    cd /tmp/preview && cp <this checkout>/docs/validation/fit_evaluations_<law>.csv \
+        docs/validation/
+    PYTHONPATH=/tmp/preview python -m pedmesh.fitting.after_fit --law <law> \
+        --only preset,law,eos,eos_door
+
+(Patching the data directory of an imported module instead is how a preview once wrote
+its table into the shipped pedmesh/data: ``runpy`` runs a module afresh.)
+
 What it cannot do for you: ``eos_door`` and ``hybrid`` print their figures, which
 ``docs/validation/dense_crowds.md`` and ``docs/models.md`` quote by hand (their logs keep
 them), and the regression values
