@@ -288,14 +288,23 @@ LAWS: dict[str, dict[str, Any]] = {
         "front_min": 6.0,
     },
 }
+
+
+def _one_point(fit: dict[str, dict[str, Any]], values) -> dict[str, dict[str, Any]]:
+    """The fitted parameters ``fit`` with a grid of one point, ``values`` in their order."""
+    values = tuple(values)
+    if len(values) != len(fit):
+        raise ValueError(f"{len(values)} values for {len(fit)} fitted parameters")
+    return {k: {**v, "grid": (x,)} for (k, v), x in zip(fit.items(), values)}
+
+
 # issue 44, exits: the converged fit's point evaluated anew with people beyond the exits
 # still in the density of those behind (exit_ghosts); the grid is that fit's best point
 LAWS["exits"] = {
     **LAWS["converged"],
     "fixed": {**LAWS["converged"]["fixed"], "exit_ghosts": 1},
-    "fit": {k: {**v, "grid": (best,)} for (k, v), best in zip(
-        LAWS["converged"]["fit"].items(),
-        (0.99, 0.923, 0.626, 0.296, 0.114, 1.45, 1.77, 3.299, 0.3))},
+    "fit": _one_point(LAWS["converged"]["fit"],
+                      (0.99, 0.923, 0.626, 0.296, 0.114, 1.45, 1.77, 3.299, 0.3)),
     "csv": "fit_evaluations_exits.csv",
     "note": ("The point is the best of `--law converged` (F = 5.54 there, "
              "`fit_evaluations_converged.csv`), evaluated again with people beyond the exits "
@@ -345,9 +354,8 @@ LAWS["corner"] = {
 LAWS["clearance"] = {
     **LAWS["corner"],
     "fixed": {**LAWS["corner"]["fixed"], "route_clearance": 0.2},
-    "fit": {k: {**v, "grid": (start,)} for (k, v), start in zip(
-        LAWS["converged"]["fit"].items(),
-        (0.99, 0.785, 0.39, 0.185, 0.114, 1.45, 1.77, 3.299, 0.3))},
+    "fit": _one_point(LAWS["converged"]["fit"],
+                      (0.99, 0.785, 0.39, 0.185, 0.114, 1.45, 1.77, 3.299, 0.3)),
     "fd": "paired",
     "csv": "fit_evaluations_clearance.csv",
     "note": ("Nelder-Mead from the shipped point with its table's knots at 1-3 /m^2 scaled "
@@ -646,15 +654,15 @@ def merge(recs: list[dict[str, Any]]) -> dict[str, Any]:
 def _merge_paired(out: dict[str, Any], recs: list[dict[str, Any]]) -> None:
     """The run-by-run Voronoi speeds of the realisations ``recs`` into ``out``: each run's
     simulated speed in a bin the mean of its realisations' samples, then
-    :func:`pedmesh.fitting.validate.paired_fd`'s comparison over the runs that have at
-    least ``FD_PAIR_MIN`` samples there in the experiment and, on average over the
+    :func:`pedmesh.fitting.validate.paired_means` over the runs that have at least
+    ``FD_PAIR_MIN`` samples there in the experiment and, on average over the
     realisations, in the simulation, each weighted by the experiment's samples."""
-    from pedmesh.fitting.validate import FD_PAIR_MIN
+    from pedmesh.fitting.validate import paired_means
 
     for ent in ENTRANCES:
         t = _suffix(ent)
         for d in FD_RHOS:
-            w = sim = ref = 0.0
+            per = {}
             for name in CORRIDOR_RUNS:
                 key = f"{t}/{name}/rho={d:g}"
                 n = np.array([float(r.get(f"n_sim{key}", 0.0)) for r in recs])
@@ -663,13 +671,12 @@ def _merge_paired(out: dict[str, Any], recs: list[dict[str, Any]]) -> None:
                 out[f"n_sim{key}"] = float(n.sum())
                 out[f"v_sim{key}"] = float(np.sum(n[ok] * v[ok]) / n[ok].sum()) \
                     if ok.any() else math.nan
-                n_exp = float(recs[0].get(f"n_exp{key}", 0.0))
-                if n.mean() >= FD_PAIR_MIN and n_exp >= FD_PAIR_MIN:
-                    w += n_exp
-                    sim += n_exp * out[f"v_sim{key}"]
-                    ref += n_exp * float(recs[0][f"v_exp{key}"])
-            out[f"v_sim_paired{t}/rho={d:g}"] = sim / w if w else math.nan
-            out[f"v_exp_paired{t}/rho={d:g}"] = ref / w if w else math.nan
+                per[name] = {"n_sim": float(n.mean()), "speed_sim": out[f"v_sim{key}"],
+                             "n_exp": float(recs[0].get(f"n_exp{key}", 0.0)),
+                             "speed_exp": float(recs[0].get(f"v_exp{key}", math.nan))}
+            paired = paired_means(per)
+            out[f"v_sim_paired{t}/rho={d:g}"] = paired["speed_sim_paired"]
+            out[f"v_exp_paired{t}/rho={d:g}"] = paired["speed_exp_paired"]
 
 
 def fd_keys(t: str, d: float) -> tuple[str, str]:
@@ -950,11 +957,12 @@ def targets(rec: dict[str, Any], free: dict[str, Any] | None) -> list[dict[str, 
                         "pass": math.isfinite(e) and abs(e) <= TOL_CORRIDOR})
         for d in FD_RHOS:
             sim_key, ref_key = fd_keys(t, d)
-            if not math.isfinite(float(rec[f"v_exp{t}/rho={d:g}"])):
+            pooled = float(rec[f"v_exp{t}/rho={d:g}"])
+            if not math.isfinite(pooled):
                 continue  # (no samples in the experiment: no target)
             ref = float(rec[ref_key])
             if not math.isfinite(ref):  # (no run paired: the pooled reference, missed)
-                ref = float(rec[f"v_exp{t}/rho={d:g}"])
+                ref = pooled
             e = float(rec[f"err/fd{t}/rho={d:g}"])
             how = "run by run, " if PAIRED_FD else ""
             out.append({"key": f"fd{t}/rho={d:g}",

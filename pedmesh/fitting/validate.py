@@ -389,14 +389,23 @@ def paired_fd(by_run: dict[str, tuple], centres=FD_DENSITIES,
     for k in range(len(centres)):
         per = {name: {"n_sim": s[k]["n"], "speed_sim": s[k]["speed"], "n_exp": e[k]["n"],
                       "speed_exp": e[k]["speed"]} for name, (s, e) in bins.items()}
-        paired = [n for n, r in per.items() if r["n_sim"] >= least and r["n_exp"] >= least]
-        w = sum(per[n]["n_exp"] for n in paired)
-        out.append({"speed_sim_paired": sum(per[n]["n_exp"] * per[n]["speed_sim"]
-                                            for n in paired) / w if w else math.nan,
-                    "speed_exp_paired": sum(per[n]["n_exp"] * per[n]["speed_exp"]
-                                            for n in paired) / w if w else math.nan,
-                    "paired_runs": paired, "runs": per})
+        out.append({**paired_means(per, least), "runs": per})
     return out
+
+
+def paired_means(per: Mapping[str, Mapping[str, float]], least: int = FD_PAIR_MIN
+                 ) -> dict[str, Any]:
+    """One density bin of :func:`paired_fd` from each run's counts and speeds there
+    (``per[run]``: ``n_sim``, ``speed_sim``, ``n_exp``, ``speed_exp``): the simulated and
+    experimental speeds [m/s] over the runs with at least ``least`` samples in both, each
+    weighted by the experiment's samples (nan if none), and those runs' names."""
+    paired = [n for n, r in per.items() if r["n_sim"] >= least and r["n_exp"] >= least]
+    w = sum(per[n]["n_exp"] for n in paired)
+    return {"speed_sim_paired": sum(per[n]["n_exp"] * per[n]["speed_sim"]
+                                    for n in paired) / w if w else math.nan,
+            "speed_exp_paired": sum(per[n]["n_exp"] * per[n]["speed_exp"]
+                                    for n in paired) / w if w else math.nan,
+            "paired_runs": paired}
 
 
 def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
