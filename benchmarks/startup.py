@@ -13,6 +13,13 @@ and best wall time of each, eos / sfm (median over median, best over best), and 
 the targets are met: the cached eos start-up at most :data:`TARGET_START_S` (median), and
 the whole eos process at most :data:`TARGET_RATIO` of the social force model's (median).
 
+The start-up part also times, interleaved with the runs, the **floor**: a process that only
+imports the libraries every run needs (numpy, scipy's sparse, spatial and linalg modules,
+shapely, triangle, meshio, numba) and calls one cached numba kernel (numba's compiler and
+its registries start at the first, whichever it is). What a run takes beyond it is
+pedmesh's own start-up; the floor says how loaded the machine is and how much of the
+target is left to pedmesh.
+
 ``--against DIR``: another checkout of pedmesh (e.g. ``git worktree add ../old main``)
 timed alternately with this one, A/B (its processes run with ``PYTHONPATH=DIR``); the
 output files of its whole runs are compared byte for byte with this checkout's
@@ -50,6 +57,32 @@ TARGET_START_S = 1.5
 #: model's (issue 46)
 TARGET_RATIO = 0.25
 MODELS = ("eos", "sfm")
+#: the floor process (see the module docstring), run from a folder of its own
+FLOOR_SCRIPT = """\
+import numpy, scipy.sparse, scipy.spatial, scipy.linalg, shapely, triangle, meshio
+import numba
+
+
+@numba.njit(cache=True)
+def total(x):
+    return x.sum()
+
+
+total(numpy.ones(3))
+"""
+
+
+def run_floor(folder: Path) -> float:
+    """The wall time [s] of one floor process (its kernel cached in ``folder`` by an
+    untimed first run)."""
+    script = folder / "floor.py"
+    if not script.is_file():
+        folder.mkdir(parents=True, exist_ok=True)
+        script.write_text(FLOOR_SCRIPT)
+        subprocess.run([sys.executable, str(script)], check=True, cwd=folder)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, str(script)], check=True, cwd=folder)
+    return time.perf_counter() - t0
 
 
 def run_cli(model: str, out: Path, extra: list[str], tree: Path | None) -> float:
@@ -91,12 +124,18 @@ def _differ(a: Path, b: Path) -> list[str]:
 
 
 def interleaved(label: str, extra: list[str], repeats: int, tmp: Path,
-                trees: dict[str, Path | None], compare: bool = False) -> dict:
+                trees: dict[str, Path | None], compare: bool = False,
+                floor: bool = False) -> dict:
     """``repeats`` processes of each model in each checkout, interleaved (the checkouts'
-    order alternating from one repeat to the next); their wall times [s]."""
+    order alternating from one repeat to the next); their wall times [s]. ``floor``: a
+    floor process (:func:`run_floor`) at the start of each repeat too."""
     walls = {(k, m): [] for k in trees for m in MODELS}
+    floors: list[float] = []
     differ: dict[str, list[str]] = {}
     for r in range(repeats):
+        if floor:
+            floors.append(run_floor(tmp / "floor"))
+            print(f"  {label} {r + 1}/{repeats}:   floor     {floors[-1]:6.2f} s", flush=True)
         order = list(trees) if r % 2 == 0 else list(trees)[::-1]
         for m in MODELS:
             for k in order:
@@ -116,6 +155,8 @@ def interleaved(label: str, extra: list[str], repeats: int, tmp: Path,
                       ratio_best=e["best_s"] / s["best_s"])
     command = " ".join(["pedmesh run", ROOM, "--model M", *extra, "-q"])
     out = dict(command=command, repeats=repeats, checkouts=res)
+    if floors:
+        out["floor"] = dict(wall_s=floors, median_s=statistics.median(floors), best_s=min(floors))
     if compare and len(trees) > 1:
         out["files_differing"] = differ
     return out
@@ -128,6 +169,14 @@ def report(title: str, res: dict) -> None:
         for m, r in c["models"].items():
             print(f"{k:>9} {m:>6} {r['median_s']:>11.2f} {r['best_s']:>9.2f}")
         print(f"{k:>9} eos / sfm: median {c['ratio_median']:.3f}, best {c['ratio_best']:.3f}")
+    if "floor" in res:
+        f = res["floor"]
+        print(f"{'floor':>9} {'':>6} {f['median_s']:>11.2f} {f['best_s']:>9.2f}   (the libraries' "
+              "imports and one cached numba kernel)")
+        for k, c in res["checkouts"].items():
+            e = c["models"]["eos"]
+            print(f"{k:>9} eos beyond the floor: median {e['median_s'] - f['median_s']:.2f} s, "
+                  f"best {e['best_s'] - f['best_s']:.2f} s")
     for m, names in res.get("files_differing", {}).items():
         print(f"  {m}: output the same bytes in both checkouts: "
               + ("yes" if not names else f"NO ({', '.join(names)})"))
@@ -160,7 +209,8 @@ def main() -> None:
         for k, tree in trees.items():  # numba's caches filled, files in the page cache
             for m in MODELS:
                 run_cli(m, tmp / f"warm-{k}-{m}", ["--t-end", "0.1"], tree)
-        start = interleaved("start-up", ["--t-end", "0.1"], args.repeats, tmp, trees)
+        start = interleaved("start-up", ["--t-end", "0.1"], args.repeats, tmp, trees,
+                            floor=True)
         results["startup"] = start
         whole = None
         if not args.skip_whole:

@@ -335,6 +335,14 @@ def startup(path: Path = DATA / "startup.json") -> str:
         lines += _table(["", "eos median [s]", "best", "sfm median [s]", "best",
                          "eos / sfm median", "best"], rows, "l")
         lines.append("")
+        if part.get("floor"):
+            f = part["floor"]
+            eos = part["checkouts"]["this"]["models"]["eos"]
+            lines += [f"*Floor* (the libraries every run imports and one cached numba kernel, "
+                      f"interleaved with the runs): median {f['median_s']:.2f} s, best "
+                      f"{f['best_s']:.2f} s; the eos start-up beyond it, pedmesh's own: "
+                      f"median {eos['median_s'] - f['median_s']:.2f} s, best "
+                      f"{eos['best_s'] - f['best_s']:.2f} s.", ""]
         for model, differ in part.get("files_differing", {}).items():
             lines += [f"`{model}`: output files of both checkouts the same bytes (summary.json "
                       "apart): " + ("yes." if not differ else f"**no** ({', '.join(differ)})."),
