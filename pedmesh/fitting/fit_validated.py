@@ -1049,6 +1049,56 @@ def _elapsed(log: Log) -> float:
     return (max(ends) - start).total_seconds()
 
 
+def experiment_rates(data_dir: str | Path | None) -> dict[str, float]:
+    """The frame rate [Hz] of each corridor experiment's trajectories (those it finds in
+    ``data_dir``, default :func:`pedmesh.fitting.validate.default_data_dir`)."""
+    import pedmesh.validation as V
+    from pedmesh.fitting.validate import default_data_dir
+
+    root = Path(data_dir) if data_dir else default_data_dir()
+    out = {}
+    for name in CORRIDOR_RUNS:
+        path = root / "data" / f"{name}.txt"
+        if path.is_file():
+            out[name] = float(V.load_experiment(path).frame_rate)
+    return out
+
+
+def reach_table(rec: dict[str, Any], exp_rates: dict[str, float]) -> list[str]:
+    """Markdown: how long each corridor run stays in each Voronoi-density bin, simulation
+    (per realisation) against the experiment, from the record's run-by-run sample counts
+    (laws that compare run by run; else nothing). A run the model never brings to a
+    density drops out of that bin's paired speed, which the objective does not see."""
+    from pedmesh.fitting.validate import FD_HALF_WIDTH, FD_PAIR_MIN, TRAJECTORY_RATE_HZ
+
+    if not PAIRED_FD:
+        return []
+    n_real = max(len(SEEDS), 1)
+    head = " | ".join(f"{d:g} /m^2" for d in FD_RHOS)
+    lines = ["## How long each run stays at each density", "",
+             "Seconds per realisation in which the corridor's measurement area holds a Voronoi "
+             f"density within {FD_HALF_WIDTH:g} /m^2 of each bin, simulation / experiment "
+             f"(simulated trajectories at {TRAJECTORY_RATE_HZ:g} Hz). A run enters a bin's "
+             f"run-by-run speed only with {FD_PAIR_MIN} samples there in both; one that the "
+             "model never brings to a density the experiment reaches drops out of that bin, "
+             "and the objective does not see it.", "",
+             f"| entrance | run | {head} |", "|---|---|" + "---|" * len(FD_RHOS)]
+    for ent in ENTRANCES:
+        t = _suffix(ent)
+        for name in CORRIDOR_RUNS:
+            cells = []
+            for d in FD_RHOS:
+                key = f"{t}/{name}/rho={d:g}"
+                n_sim = float(rec.get(f"n_sim{key}", math.nan)) / n_real
+                n_exp = float(rec.get(f"n_exp{key}", math.nan))
+                rate = exp_rates.get(name)
+                sim = n_sim / TRAJECTORY_RATE_HZ
+                exp = n_exp / rate if rate else math.nan
+                cells.append(f"{_f(sim, '.1f')} / {_f(exp, '.1f')}")
+            lines.append(f"| {ent} | {name} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def noise_note(log: Log, radius: float = 0.05) -> str:
     """How much the objective scatters among the evaluated points near the best one
     (within ``radius`` in the scaled coordinates): each point is one realisation of a
@@ -1083,7 +1133,8 @@ def _f(v, fmt=".2f"):
     return format(v, fmt) if math.isfinite(v) else "-"
 
 
-def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dict[str, Any]:
+def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float,
+                  data_dir: str | Path | None = None) -> dict[str, Any]:
     from pedmesh._version import __version__
 
     best = log.best()
@@ -1177,6 +1228,7 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                                          f"({_pc(t['err'])}, band {t['band']})" for t in missed)
                   + ".")
         md.append("")
+    md += reach_table(best, experiment_rates(data_dir))
     md += ["## History", "",
            f"{len(grid)} grid evaluations, {len(nmr)} Nelder-Mead runs"
            + (f" ({nm.message.strip().rstrip('.')}, {nm.nfev} calls)" if nm is not None else "")
@@ -1264,7 +1316,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\nbest: {model_parameters(best)}  F = {best['objective']:.3f} "
               f"(eval #{best['eval']:.0f})\nfree speed {free['speed']:.3f} m/s")
         return 0
-    out = write_outputs(log, nm, free, time.perf_counter() - t0)
+    out = write_outputs(log, nm, free, time.perf_counter() - t0, args.data)
     print(f"\nbest: {out['parameters']}  F = {out['objective']}")
     print(f"free speed {free['speed']:.3f} m/s ({_pc(free['err'])})")
     print(f"wrote {OUT_JSON} and {OUT_MD}; wall time {(time.perf_counter() - t0) / 60:.1f} min")

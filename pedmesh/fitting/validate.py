@@ -97,6 +97,8 @@ WALL_DOOR_WIDTHS = (0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 1.6)
 WALL_THICKNESS = 0.2
 ROOM_BEHIND = 4.0
 PARTS = ("corridor", "bottleneck", "walldoor", "free")
+#: [Hz] the rate at which the simulated runs record trajectories (every part's default)
+TRAJECTORY_RATE_HZ = 10.0
 
 
 def default_data_dir() -> Path:
@@ -216,8 +218,8 @@ FREE_AREA = ((36.0, 0.0), (58.0, 0.0), (58.0, 4.0), (36.0, 4.0))
 
 # --------------------------------------------------------------------------- running
 def run_sfm(room: Room, out_dir: Path, *, overrides: Mapping[str, Any] | None = None,
-            preset: str | None = None, t_end: float = 600.0, trajectory_rate: float = 10.0,
-            geometry: str | None = None,
+            preset: str | None = None, t_end: float = 600.0,
+            trajectory_rate: float = TRAJECTORY_RATE_HZ, geometry: str | None = None,
             model_options: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Simulate ``room`` with the SFM into ``out_dir``; the run's summary plus
     ``wall_s`` (whole wall time [s] including meshing) and ``error`` (None, or why the
@@ -282,7 +284,7 @@ def _mean(values: Iterable[float]) -> float:
 
 
 def corridor_part(data_dir: Path, runs_dir: Path, *, overrides=None, preset=None,
-                  t_end: float = 600.0, trajectory_rate: float = 10.0,
+                  t_end: float = 600.0, trajectory_rate: float = TRAJECTORY_RATE_HZ,
                   fd_frames: str = "steady", entrance: str = "door",
                   seeds: Iterable[int | None] = (None,), log=print) -> dict[str, Any]:
     """Simulate and measure the five corridor runs; rows and the pooled FD. ``entrance``:
@@ -409,7 +411,8 @@ def paired_means(per: Mapping[str, Mapping[str, float]], least: int = FD_PAIR_MI
 
 
 def bottleneck_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
-                    trajectory_rate: float = 10.0, widths: Iterable[float] = BOTTLENECK_WIDTHS,
+                    trajectory_rate: float = TRAJECTORY_RATE_HZ,
+                    widths: Iterable[float] = BOTTLENECK_WIDTHS,
                     seeds: Iterable[int | None] = (None,), log=print,
                     opening: str = "long") -> list[dict[str, Any]]:
     """The bottleneck series: per width b [m], the specific flow J/b [1/(m s)] at the middle
@@ -511,8 +514,8 @@ def plot_bottleneck(rows: list[Mapping[str, Any]], path: Path, title: str = "",
 
 
 def free_part(runs_dir: Path, *, overrides=None, preset=None, t_end: float = 600.0,
-              trajectory_rate: float = 10.0, seeds: Iterable[int | None] = (None,),
-              log=print) -> dict[str, Any]:
+              trajectory_rate: float = TRAJECTORY_RATE_HZ,
+              seeds: Iterable[int | None] = (None,), log=print) -> dict[str, Any]:
     """Mean speed [m/s] of free walkers (one run: three lone walkers have no realisations
     that differ, so only the first of ``seeds`` is used)."""
     out = runs_dir / "free"
@@ -564,7 +567,7 @@ def errors_of(results: Mapping[str, Any]) -> dict[str, float]:
 def run_validation(overrides: Mapping[str, Any] | None = None, preset: str | None = None, *,
                    parts: Iterable[str] = ("corridor",), data_dir: str | Path | None = None,
                    out_dir: str | Path | None = None, t_end: float = 600.0,
-                   trajectory_rate: float = 10.0, fd_frames: str = "all",
+                   trajectory_rate: float = TRAJECTORY_RATE_HZ, fd_frames: str = "all",
                    entrance: str = "door", seeds: Iterable[int | None] = (None,),
                    widths: Iterable[float] = BOTTLENECK_WIDTHS,
                    door_widths: Iterable[float] = WALL_DOOR_WIDTHS,
