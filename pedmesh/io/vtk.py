@@ -26,8 +26,8 @@ from ..errors import PedmeshError
 from .files import write_through_part
 
 __all__ = ["FrameReadError", "frame_intact", "check_frames_whole", "frame_density",
-           "check_same_mesh", "mesh_to_meshio", "write_vtu", "write_vtp", "PVDWriter",
-           "read_pvd_index", "read_vtu", "read_vtp"]
+           "check_same_mesh", "mesh_to_meshio", "write_vtu", "write_cells_vtu", "write_vtp",
+           "PVDWriter", "read_pvd_index", "read_vtu", "read_vtp"]
 
 ArrayMap = Mapping[str, np.ndarray] | None
 
@@ -123,9 +123,21 @@ def _vtk_array(name: str, values: np.ndarray):
     return arr
 
 
-def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayMap) -> Path:
+def write_cells_vtu(path: str | Path, mesh, cell_data: ArrayMap) -> Path:
+    """Write a triangle mesh (``points`` (n, 2 or 3) [m], ``triangles`` (m, 3),
+    ``n_points``, ``n_triangles``) with per-triangle fields to a ``.vtu`` by VTK's own
+    writer, as the density frames are written (no meshio import in a run); through
+    ``<name>.part``, renamed when complete."""
+    path = Path(path)
+    return _write_frame(path, _grid(mesh), mesh, None, cell_data,
+                        tmp=path.with_name(path.name + ".part"))
+
+
+def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayMap,
+                 tmp: Path | None = None) -> Path:
     """Write ``grid`` with these fields (replacing the previous frame's) to ``path`` with
-    VTK's XML writer: appended raw data, LZ4-compressed."""
+    VTK's XML writer: appended raw data, LZ4-compressed; through ``tmp`` (default
+    ``<stem>.part.vtu``)."""
     from vtkmodules.vtkIOCore import vtkLZ4DataCompressor
     from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
 
@@ -143,7 +155,8 @@ def _write_frame(path: Path, grid, mesh, point_data: ArrayMap, cell_data: ArrayM
         pd.AddArray(_vtk_array(k, v))
     for k, v in (cell_data or {}).items():
         cd.AddArray(_vtk_array(k, v))
-    tmp = path.with_name(path.stem + ".part.vtu")
+    if tmp is None:
+        tmp = path.with_name(path.stem + ".part.vtu")
     w = vtkXMLUnstructuredGridWriter()
     w.SetFileName(str(tmp))
     w.SetInputData(grid)

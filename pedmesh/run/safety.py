@@ -382,14 +382,14 @@ def write_safety_vtu(path: str | Path, *, points: np.ndarray, triangles: np.ndar
     opens next to density.pvd."""
     from types import SimpleNamespace
 
-    from ..io.vtk import write_vtu
+    from ..io.vtk import write_cells_vtu
 
     pts = np.asarray(points, float)
     pts = pts if pts.shape[1] == 3 else pts[:, :2]  # (a building's surface in 3-D)
     tri = np.asarray(triangles)
     mesh = SimpleNamespace(points=pts, triangles=tri, n_points=len(pts),
                            n_triangles=len(tri))
-    return write_vtu(path, mesh, cell_data=fields)
+    return write_cells_vtu(path, mesh, fields)
 
 
 def safety_measures(run_dir: str | Path, room=None, mesh=None, *,
