@@ -15,10 +15,10 @@ the whole eos process at most :data:`TARGET_RATIO` of the social force model's (
 
 The start-up part also times, interleaved with the runs, the **floor**: a process that only
 imports the libraries every run needs (numpy, scipy's sparse, spatial and linalg modules,
-shapely, triangle, meshio, numba) and calls one cached numba kernel (numba's compiler and
-its registries start at the first, whichever it is). What a run takes beyond it is
-pedmesh's own start-up; the floor says how loaded the machine is and how much of the
-target is left to pedmesh.
+shapely, triangle, VTK's data model and XML writers, numba) and calls one cached numba
+kernel (numba's compiler and its registries start at the first, whichever it is). What a
+run takes beyond it is pedmesh's own start-up; the floor says how loaded the machine is
+and how much of the target is left to pedmesh.
 
 ``--against DIR``: another checkout of pedmesh (e.g. ``git worktree add ../old main``)
 timed alternately with this one, A/B (its processes run with ``PYTHONPATH=DIR``); the
@@ -59,7 +59,8 @@ TARGET_RATIO = 0.25
 MODELS = ("eos", "sfm")
 #: the floor process (see the module docstring), run from a folder of its own
 FLOOR_SCRIPT = """\
-import numpy, scipy.sparse, scipy.spatial, scipy.linalg, shapely, triangle, meshio
+import numpy, scipy.sparse, scipy.spatial, scipy.linalg, shapely, triangle
+import vtkmodules.vtkCommonDataModel, vtkmodules.vtkIOXML
 import numba
 
 
