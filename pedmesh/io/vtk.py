@@ -1,6 +1,7 @@
-"""VTK output that ParaView opens: ``.vtu`` meshes (meshio; the frames of a time series
-through VTK's own writer, LZ4-compressed), ``.vtp`` point clouds (VTK's writer, the bytes
-pyvista writes) and ``.pvd`` time-series collections.
+"""VTK output that ParaView opens: ``.vtu`` meshes (meshio; the frames of a time series and
+a run's per-cell maps through VTK's own writer, LZ4-compressed, so that a run does not
+import meshio), ``.vtp`` point clouds (VTK's writer, the bytes pyvista writes) and ``.pvd``
+time-series collections.
 
 2-D vector fields, shape (n, 2), are written with a zero third component so that ParaView
 can draw them as glyphs. pyvista reads PVD but does not write it, so the small PVD writer
