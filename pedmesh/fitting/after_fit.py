@@ -25,11 +25,8 @@ its kernels once, some minutes)::
     git worktree add /tmp/preview HEAD
     cd /tmp/preview && cp <this checkout>/docs/validation/fit_evaluations_<law>.csv \
         docs/validation/
-    PYTHONPATH=/tmp/preview PEDMESH_EXPERIMENTS=<this checkout>/../shared/experiments \
-        python -m pedmesh.fitting.after_fit --law <law> --only preset,law,eos,eos_door
-
-(``PEDMESH_EXPERIMENTS``: the worktree has no ``../shared`` beside it, and fit.md's table
-of how long each corridor run stays at each density reads the experiments' frame rates.)
+    PYTHONPATH=/tmp/preview python -m pedmesh.fitting.after_fit --law <law> \
+        --only preset,law,eos,eos_door
 
 (Patching the data directory of an imported module instead is how a preview once wrote
 its table into the shipped pedmesh/data: ``runpy`` runs a module afresh.)

@@ -1049,27 +1049,17 @@ def _elapsed(log: Log) -> float:
     return (max(ends) - start).total_seconds()
 
 
-def experiment_rates(data_dir: str | Path | None) -> dict[str, float]:
-    """The frame rate [Hz] of each corridor experiment's trajectories (those it finds in
-    ``data_dir``, default :func:`pedmesh.fitting.validate.default_data_dir`)."""
-    import pedmesh.validation as V
-    from pedmesh.fitting.validate import default_data_dir
-
-    root = Path(data_dir) if data_dir else default_data_dir()
-    out = {}
-    for name in CORRIDOR_RUNS:
-        path = root / "data" / f"{name}.txt"
-        if path.is_file():
-            out[name] = float(V.load_experiment(path).frame_rate)
-    return out
-
-
-def reach_table(rec: dict[str, Any], exp_rates: dict[str, float]) -> list[str]:
+def reach_table(rec: dict[str, Any], exp_rate_hz: float | None = None) -> list[str]:
     """Markdown: how long each corridor run stays in each Voronoi-density bin, simulation
-    (per realisation) against the experiment, from the record's run-by-run sample counts
-    (laws that compare run by run; else nothing). A run the model never brings to a
-    density drops out of that bin's paired speed, which the objective does not see."""
+    (per realisation) against the experiment (recorded at ``exp_rate_hz`` frames/s,
+    default :data:`pedmesh.validation.EXPERIMENT_FRAME_RATE_HZ`), from the record's
+    run-by-run sample counts (laws that compare run by run; else nothing). A run the
+    model never brings to a density drops out of that bin's paired speed, which the
+    objective does not see."""
     from pedmesh.fitting.validate import FD_HALF_WIDTH, FD_PAIR_MIN, TRAJECTORY_RATE_HZ
+    from pedmesh.validation import EXPERIMENT_FRAME_RATE_HZ
+
+    exp_rate_hz = EXPERIMENT_FRAME_RATE_HZ if exp_rate_hz is None else float(exp_rate_hz)
 
     if not PAIRED_FD:
         return []
@@ -1091,9 +1081,8 @@ def reach_table(rec: dict[str, Any], exp_rates: dict[str, float]) -> list[str]:
                 key = f"{t}/{name}/rho={d:g}"
                 n_sim = float(rec.get(f"n_sim{key}", math.nan)) / n_real
                 n_exp = float(rec.get(f"n_exp{key}", math.nan))
-                rate = exp_rates.get(name)
                 sim = n_sim / TRAJECTORY_RATE_HZ
-                exp = n_exp / rate if rate else math.nan
+                exp = n_exp / exp_rate_hz
                 cells.append(f"{_f(sim, '.1f')} / {_f(exp, '.1f')}")
             lines.append(f"| {ent} | {name} | " + " | ".join(cells) + " |")
     return lines + [""]
@@ -1133,8 +1122,7 @@ def _f(v, fmt=".2f"):
     return format(v, fmt) if math.isfinite(v) else "-"
 
 
-def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float,
-                  data_dir: str | Path | None = None) -> dict[str, Any]:
+def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dict[str, Any]:
     from pedmesh._version import __version__
 
     best = log.best()
@@ -1228,7 +1216,7 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float,
                                          f"({_pc(t['err'])}, band {t['band']})" for t in missed)
                   + ".")
         md.append("")
-    md += reach_table(best, experiment_rates(data_dir))
+    md += reach_table(best)
     md += ["## History", "",
            f"{len(grid)} grid evaluations, {len(nmr)} Nelder-Mead runs"
            + (f" ({nm.message.strip().rstrip('.')}, {nm.nfev} calls)" if nm is not None else "")
@@ -1316,7 +1304,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"\nbest: {model_parameters(best)}  F = {best['objective']:.3f} "
               f"(eval #{best['eval']:.0f})\nfree speed {free['speed']:.3f} m/s")
         return 0
-    out = write_outputs(log, nm, free, time.perf_counter() - t0, args.data)
+    out = write_outputs(log, nm, free, time.perf_counter() - t0)
     print(f"\nbest: {out['parameters']}  F = {out['objective']}")
     print(f"free speed {free['speed']:.3f} m/s ({_pc(free['err'])})")
     print(f"wrote {OUT_JSON} and {OUT_MD}; wall time {(time.perf_counter() - t0) / 60:.1f} min")

@@ -95,21 +95,23 @@ def test_a_bin_the_simulation_does_not_reach_run_by_run_still_counts(clearance):
 
 def test_the_report_says_how_long_each_run_stays_at_each_density(clearance):
     """fit.md's table of seconds in each density bin: the simulation's samples over its
-    realisations and its trajectory rate, the experiment's over its own frame rate; a run
-    the model never brings to 2 /m^2 shows as 0.0 there."""
+    realisations and its trajectory rate, the experiment's over its frame rate (16 /s); a
+    run the model never brings to 2 /m^2 shows as 0.0 there."""
     from pedmesh.fitting.validate import TRAJECTORY_RATE_HZ
 
     a, b = fv.CORRIDOR_RUNS[:2]
     n_real = len(fv.SEEDS)
     rec = _rec({a: {2.0: (0, 0.0, 160, 0.9)},
                 b: {1.0: (n_real * 25 * TRAJECTORY_RATE_HZ, 1.2, 320, 1.3)}})
-    lines = fv.reach_table(rec, {a: 16.0, b: 16.0})
+    lines = fv.reach_table(rec)
     row = {(r.split(" | ")[0].strip("| "), r.split(" | ")[1]): r for r in lines
            if r.startswith("| ") and " | uo-" in r}
     ent = fv.ENTRANCES[0]
     assert row[ent, a].split(" | ")[3] == "0.0 / 10.0"  # 2 /m^2: never in the model
     assert row[ent, b].split(" | ")[2] == "25.0 / 20.0"  # 1 /m^2
-    # an experiment whose frame rate is unknown: its seconds are not guessed
-    assert fv.reach_table(rec, {})[-2].endswith("0.0 / - |")
+    # the experiment's seconds follow its frame rate
+    slow = {(r.split(" | ")[0].strip("| "), r.split(" | ")[1]): r
+            for r in fv.reach_table(rec, 8.0) if r.startswith("| ") and " | uo-" in r}
+    assert slow[ent, a].split(" | ")[3] == "0.0 / 20.0"
     fv.configure("corner")
-    assert fv.reach_table(rec, {a: 16.0}) == []
+    assert fv.reach_table(rec) == []
