@@ -904,6 +904,9 @@ def line_of(rec: dict[str, Any]) -> str:
                                       for w in FRONT_WIDTHS)
     v = " / ".join(" ".join(_pc(rec[f"err/fd{_suffix(e)}/rho={d:g}"]) for d in FD_RHOS)
                    for e in ENTRANCES)
+    if POOLED_TOO:
+        v += " pooled " + " / ".join(" ".join(_pc(rec[f"err/fd_pooled{_suffix(e)}/rho={d:g}"])
+                                              for d in FD_RHOS) for e in ENTRANCES)
     extra = ""
     if rec["failed"] or rec["clogged"]:
         extra = f" failed {rec['failed']:.0f} clogged {rec['clogged']:.0f}"
