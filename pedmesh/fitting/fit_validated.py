@@ -50,7 +50,9 @@ Several fits live here (``--law``); the shipped ``validated`` preset is the last
     speed there from -4 % to -29 % without seeing it. Its evaluations are reused from
     ``fit_evaluations_clearance.csv``, re-scored on read (phase "reused"); new ones go to
     ``fit_evaluations_clearance_pooled.csv``. Nelder-Mead from the best re-scored point
-    (#15, F = 11.37; the clearance fit's best, #24, re-scores to 14.3).
+    (#15, F = 11.37; the clearance fit's best, #24, re-scores to 14.77). The reuse is frozen
+    at the clearance CSV's first 35 evaluations (``reuse_upto``), so that a resumed clearance
+    fit cannot change this fit's replay or its numbering.
 
 ``--law converged`` (issue 44): routes on a route mesh of their own reading the crowd on
     2 m, the density cone and the walls' social share, the table and the dense-crowd terms
@@ -402,6 +404,8 @@ LAWS["clearance_pooled"] = {
     "fd": "both",
     "csv": "fit_evaluations_clearance_pooled.csv",
     "reuse": ("fit_evaluations_clearance.csv",),
+    # (frozen: the clearance fit's later rows, if it is resumed, are not this fit's)
+    "reuse_upto": 35,
     "nm_from": 15,
     "note": ("The clearance fit's model and evaluations (reused from "
              "`fit_evaluations_clearance.csv`, re-scored) with the pooled Voronoi speeds at "
@@ -799,9 +803,10 @@ def objective(rec: dict[str, Any]) -> float:
 class Log:
     """The evaluations so far (read from and appended to the CSV ``path``; first those of
     the CSVs ``reuse`` of another fit of the same model, re-scored with this fit's
-    objective, their phase "reused")."""
+    objective, their phase "reused", those numbered above ``reuse_upto`` left out). New rows
+    are numbered after every row read."""
 
-    def __init__(self, path: Path, reuse: Sequence[Path] = ()):
+    def __init__(self, path: Path, reuse: Sequence[Path] = (), reuse_upto: int | None = None):
         self.path = path
         self.rows: dict[tuple[float, ...], dict[str, Any]] = {}
         self.order: list[dict[str, Any]] = []
@@ -810,7 +815,8 @@ class Log:
         for other in reuse:
             with Path(other).open(newline="") as fh:
                 for row in csv.DictReader(fh):
-                    if row.get("fixed") != FIXED_KEY:
+                    if row.get("fixed") != FIXED_KEY or (
+                            reuse_upto is not None and int(row["eval"]) > reuse_upto):
                         continue
                     rec = {k: _num(v) for k, v in row.items()}
                     rec["fixed"], rec["phase"], rec["date"] = row["fixed"], "reused", \
@@ -842,7 +848,7 @@ class Log:
 
     def add(self, rec: dict[str, Any], phase: str) -> dict[str, Any]:
         rec = dict(rec)
-        rec["eval"] = len(self.order) + 1
+        rec["eval"] = max((int(r["eval"]) for r in self.order), default=0) + 1
         rec["phase"] = phase
         rec["objective"] = objective(rec)
         rec["date"] = datetime.datetime.now().isoformat(timespec="seconds")
@@ -1134,12 +1140,13 @@ def targets(rec: dict[str, Any], free: dict[str, Any] | None) -> list[dict[str, 
     return out
 
 
-def _elapsed(log: Log) -> float:
-    """Wall time [s] from the start of the first evaluation in the CSV to the end of the
-    last (by their recorded end times and durations)."""
-    ends = [datetime.datetime.fromisoformat(r["date"]) for r in log.order]
+def _elapsed(rows: Log | list[dict[str, Any]]) -> float:
+    """Wall time [s] from the start of the first evaluation of ``rows`` (a log's, or a list)
+    to the end of the last (by their recorded end times and durations)."""
+    rows = rows.order if isinstance(rows, Log) else rows
+    ends = [datetime.datetime.fromisoformat(r["date"]) for r in rows]
     start = min(e - datetime.timedelta(seconds=float(r["seconds"]))
-                for e, r in zip(ends, log.order))
+                for e, r in zip(ends, rows))
     return (max(ends) - start).total_seconds()
 
 
@@ -1227,12 +1234,15 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
               for k, v in errors.items()}
     grid = [r for r in log.order if r["phase"] == "grid"]
     nmr = [r for r in log.order if r["phase"] == "nm"]
+    reused = [r for r in log.order if r["phase"] == "reused"]
+    start = LAWS[LAW].get("nm_from")
     method = (
         f"Weighted least squares of relative errors (each over its tolerance: corridor exit "
         + ("flows 10 % with both entrances (door and replay), bottleneck J/b 10 % outside the "
            f"published band, densities in front of 0.5-1.2 m openings 10 % outside "
            f"{FRONT_MIN:g}-{FRONT_MAX:g} /m^2, Voronoi speeds at 1/2/3 /m^2 "
            + ("compared run by run (paired_fd) " if PAIRED_FD else "")
+           + ("and pooled " if POOLED_TOO else "")
            + "15 % with both entrances"
            if FRONT else "flows 10 %, bottleneck J/b 0.3/1.9, Voronoi speeds at 1/2/3 /m^2 "
            "15 %")
@@ -1243,11 +1253,16 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
         + (f", + doors in a thin wall at {', '.join(f'{b:g}' for b in DOOR_WIDTHS)} m "
            "(J/b 10 % outside the published doors' and short openings' band)"
            if DOOR_WIDTHS else "")
-        + f", fd_frames=all). Coarse grid {len(grid)} "
-        "points ("
-        + ", ".join(f"{n} {FIT[n]['grid']}" for n in NAMES)
-        + "), then bounded Nelder-Mead from the best grid point "
-        f"(scaled coordinates, xatol 1.5 % of each range, {len(nmr)} new runs); "
+        + ", fd_frames=all). "
+        + (f"{len(reused)} evaluations of another fit of the model reused "
+           f"({', '.join(LAWS[LAW]['reuse'])}, re-scored), then bounded Nelder-Mead from "
+           f"evaluation {start} "
+           if reused and start is not None else
+           f"Coarse grid {len(grid)} points ("
+           + ", ".join(f"{n} {FIT[n]['grid']}" for n in NAMES)
+           + "), then bounded Nelder-Mead from "
+           + (f"evaluation {start} " if start is not None else "the best grid point "))
+        + f"(scaled coordinates, xatol 1.5 % of each range, {len(nmr)} new runs); "
         f"python -m pedmesh.fitting.fit_validated --law {LAW}, evaluations in docs/validation/"
         f"{LAWS[LAW]['csv']}"
         + (f"; each point the mean of realisations (seeds) {', '.join(map(str, SEEDS))}"
@@ -1311,17 +1326,25 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                   + ".")
         md.append("")
     md += reach_table(best)
+    own = [r for r in log.order if r["phase"] != "reused"] or log.order
     md += ["## History", "",
-           f"{len(grid)} grid evaluations, {len(nmr)} Nelder-Mead runs"
+           (f"{len(reused)} evaluations reused from {', '.join(LAWS[LAW]['reuse'])} "
+            "(re-scored), " if reused else "")
+           + f"{len(grid)} grid evaluations, {len(nmr)} Nelder-Mead runs"
            + (f" ({nm.message.strip().rstrip('.')}, {nm.nfev} calls)" if nm is not None else "")
-           + f"; sum of evaluation times {sum(float(r['seconds']) for r in log.order):.0f} s; "
-           f"{_elapsed(log) / 60:.1f} min from the start of the first evaluation to the end of "
-           f"the last (this invocation: {wall_s / 60:.1f} min).", "",
-           noise_note(log), "", best_grid_note(grid), "",
+           + f"; sum of this fit's evaluation times {sum(float(r['seconds']) for r in own):.0f} "
+           f"s; {_elapsed(own) / 60:.1f} min from the start of its first evaluation to the "
+           f"end of its last (this invocation: {wall_s / 60:.1f} min).", "",
+           noise_note(log), "",
+           (f"Nelder-Mead started at evaluation {start} (F = "
+            f"{next(float(r['objective']) for r in log.order if int(r['eval']) == start):.2f})."
+            if start is not None and any(int(r["eval"]) == start for r in log.order)
+            else best_grid_note(grid)), "",
            "Best points (F: objective; errors in %):", "",
            "| # | phase | " + " | ".join(NAMES) + " | F | J_exit 070/100/145/180/095 ("
            + " / ".join(ENTRANCES) + ") | J/b " + "/".join(f"{b:g}" for b in WIDTHS)
-           + " | v at 1/2/3 /m^2 (" + " / ".join(ENTRANCES) + ") | s |",
+           + " | v at 1/2/3 /m^2 (" + " / ".join(ENTRANCES) + ")"
+           + (", then pooled" if POOLED_TOO else "") + " | s |",
            "|---|---|" + "---|" * len(NAMES) + "---|---|---|---|---|"]
     for r in sorted(log.order, key=lambda r: r["objective"])[:8]:
         md.append(f"| {r['eval']:.0f} | {r['phase']} | "
@@ -1331,6 +1354,9 @@ def write_outputs(log: Log, nm: Any, free: dict[str, Any], wall_s: float) -> dic
                   + " ".join(_f(r[f"Jb_sim/b={b:g}"]) for b in WIDTHS) + " | "
                   + " / ".join(" ".join(_pc(r[f"err/fd{_suffix(e)}/rho={d:g}"])
                                         for d in FD_RHOS) for e in ENTRANCES)
+                  + (", " + " / ".join(" ".join(_pc(r[f"err/fd_pooled{_suffix(e)}/rho={d:g}"])
+                                                for d in FD_RHOS) for e in ENTRANCES)
+                     if POOLED_TOO else "")
                   + f" | {float(r['seconds']):.0f} |")
     if LAW in ("table", "crowd", "converged", "exits", "clearance",
                "clearance_cone1", "clearance_pooled"):  # (the preset reads it)
@@ -1361,7 +1387,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="most Nelder-Mead function calls (default 25)")
     ap.add_argument("--nm-from", type=int, default=None, metavar="EVAL",
                     help="start Nelder-Mead's simplex at this evaluation of the CSV "
-                         "(default: the best grid point)")
+                         "(default: the law's own start if it names one, else the best grid "
+                         "point)")
     ap.add_argument("--csv", type=Path, default=None,
                     help="evaluation log (resumed; default docs/validation/ and the law's file)")
     ap.add_argument("--data", default=None, metavar="DIR", help="experiments directory")
@@ -1376,7 +1403,8 @@ def main(argv: list[str] | None = None) -> int:
     warnings.filterwarnings("ignore")
     t0 = time.perf_counter()
     log = Log(csv_path, [ROOT / "docs" / "validation" / f
-                         for f in LAWS[args.law].get("reuse", ())])
+                         for f in LAWS[args.law].get("reuse", ())],
+              LAWS[args.law].get("reuse_upto"))
     reused = sum(r["phase"] == "reused" for r in log.order)
     print(f"{log.resumed} evaluations read from {csv_path}"
           + (f" ({reused} of them reused from {', '.join(LAWS[args.law]['reuse'])})"

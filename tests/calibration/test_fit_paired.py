@@ -158,5 +158,46 @@ def test_the_pooled_law_also_scores_the_issues_pooled_speeds(tmp_path):
         # a new row is numbered after the reused ones and goes to the law's own file
         new = log.add({**_scored_record(), fv.NAMES[0]: 0.6}, "nm")
         assert new["eval"] == 2 and (tmp_path / "pooled.csv").is_file()
+        # reopened (a resumed fit): the reused row, then the law's own, their F as written
+        again = fv.Log(tmp_path / "pooled.csv", reuse=[old])
+        assert [(int(r["eval"]), r["phase"]) for r in again.order] == [(1, "reused"),
+                                                                       (2, "nm")]
+        assert again.order[1]["objective"] == pytest.approx(new["objective"])
+        # the other fit goes on (its row #2): frozen at its first row, the reuse ignores it
+        fv.configure("clearance")
+        fv.Log(old).add({**rec, fv.NAMES[0]: 0.7}, "nm")
+        fv.configure("clearance_pooled")
+        frozen = fv.Log(tmp_path / "pooled.csv", reuse=[old], reuse_upto=1)
+        assert [int(r["eval"]) for r in frozen.order] == [1, 2]
+        assert frozen.add({**_scored_record(), fv.NAMES[0]: 0.8}, "nm")["eval"] == 3
+        # unfrozen, numbers still never repeat: a new row is numbered after the largest
+        loose = fv.Log(tmp_path / "pooled.csv", reuse=[old])
+        assert loose.add({**_scored_record(), fv.NAMES[0]: 0.9}, "nm")["eval"] == 4
+    finally:
+        fv.configure("corner")
+
+
+def test_the_pooled_laws_merge_writes_the_pooled_errors():
+    """merge() of a clearance_pooled point's realisations gives the pooled errors the
+    objective reads (the pooled speeds: every run's samples of both realisations)."""
+    fv.configure("clearance_pooled")
+    try:
+        recs = []
+        for v in (0.6, 0.8):  # two realisations, each with every run's samples
+            r = _rec({})
+            r.update({k: 0.0 for k in fv.COLUMNS if k.startswith(("J_exit", "Jb_sim",
+                                                                    "Jw_sim", "rho_front",
+                                                                    "stuck"))})
+            r.update({"failed": 0.0, "clogged": 0.0, "seconds": 1.0, "rms_all": 0.0})
+            for ent in fv.ENTRANCES:
+                t = fv._suffix(ent)
+                for d in fv.FD_RHOS:
+                    r.update({f"v_sim{t}/rho={d:g}": v, f"n_sim{t}/rho={d:g}": 100.0,
+                              f"v_exp{t}/rho={d:g}": 1.0})
+            recs.append(r)
+        out = fv.merge(recs)
+        t = fv._suffix(fv.ENTRANCES[0])
+        assert out[f"err/fd_pooled{t}/rho=2"] == pytest.approx(-0.3)
+        assert math.isfinite(fv.objective(out))
     finally:
         fv.configure("corner")
