@@ -167,9 +167,13 @@ Output
 
 Usage::
 
-    python -m pedmesh.fitting.fit_validated [--law crowd|table|weidmann] [--jobs 2]
+    python -m pedmesh.fitting.fit_validated [--law LAW] [--jobs 2]
         [--nm-evals 25] [--nm-from EVAL] [--csv PATH] [--data DIR] [--grid-only]
-        [--report-only] [--no-write]
+        [--probe NAME=VALUE ...] [--report-only] [--no-write]
+
+``--probe`` evaluates one point, the evaluation ``--nm-from`` (or the best) with the
+named fitted parameters changed, and logs it with the phase "probe": a direction a
+Nelder-Mead simplex would take long to find can be tried, and the fit started there.
 
 The continuum models' law under the preset is then measured from the fitted SFM by
 ``python -m pedmesh.fitting.continuum_law`` (``pedmesh/data/fd_validated.json``).
@@ -980,6 +984,28 @@ def nm_start(log: Log, eval_no: int | None = None) -> dict[str, Any]:
     return min(grid or log.order, key=lambda r: (r["objective"], r["eval"]))
 
 
+def probe_point(log: Log, changes: Sequence[str], eval_no: int | None = None
+                ) -> dict[str, float]:
+    """The fitted parameters of evaluation ``eval_no`` of ``log`` (None: its best) with
+    ``changes`` ("name=value" of fitted parameters) applied, within their bounds."""
+    base = log.best() if eval_no is None else nm_start(log, eval_no)
+    x = {n: float(base[n]) for n in NAMES}
+    for c in changes:
+        name, _, value = c.partition("=")
+        if name not in FIT:
+            raise SystemExit(f"--probe {c}: {name!r} is not a fitted parameter of --law {LAW} "
+                             f"({', '.join(NAMES)})")
+        try:
+            v = float(value)
+        except ValueError:
+            raise SystemExit(f"--probe {c}: {value!r} is not a number") from None
+        lo, hi = FIT[name]["bounds"]
+        if not lo <= v <= hi:
+            raise SystemExit(f"--probe {c}: outside {name}'s bounds [{lo:g}, {hi:g}]")
+        x[name] = v
+    return rounded(x)
+
+
 def run_nelder_mead(log: Log, pool, max_evals: int, data_dir: str | None,
                     start_eval: int | None = None) -> Any:
     from scipy.optimize import minimize
@@ -1393,6 +1419,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="evaluation log (resumed; default docs/validation/ and the law's file)")
     ap.add_argument("--data", default=None, metavar="DIR", help="experiments directory")
     ap.add_argument("--grid-only", action="store_true", help="stop after the grid")
+    ap.add_argument("--probe", nargs="+", metavar="NAME=VALUE", default=None,
+                    help="evaluate one point and stop: the evaluation --nm-from (default: "
+                         "the best so far) with these fitted parameters changed; logged with "
+                         "phase 'probe' (a later --nm-from may start there)")
     ap.add_argument("--report-only", action="store_true",
                     help="no new runs but the free check: report the best point of the CSV")
     ap.add_argument("--no-write", action="store_true",
@@ -1416,7 +1446,14 @@ def main(argv: list[str] | None = None) -> int:
     ctx = multiprocessing.get_context("spawn")  # fresh interpreters: NUMBA_NUM_THREADS holds
     pool = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) if jobs > 1 else None
     try:
-        if not args.report_only:
+        if args.probe is not None:
+            x = probe_point(log, args.probe, args.nm_from)
+            rec = log.get(x)
+            if rec is None:
+                log.add(evaluate_point(x, pool, args.data), "probe")
+            else:
+                print(f"already evaluated: eval #{rec['eval']:.0f}, F = {rec['objective']:.2f}")
+        elif not args.report_only:
             run_grid(log, pool, jobs, args.data)
             if not log.order:
                 raise SystemExit("no evaluation succeeded")

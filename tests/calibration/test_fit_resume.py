@@ -51,3 +51,27 @@ def test_rows_are_appended_in_the_files_column_order_and_other_columns_refused(t
         fv.Log(path).check_writable()
     with pytest.raises(SystemExit, match="other columns than this fit writes"):
         fv.Log(path).add(rec, "nm")
+
+
+def test_a_probe_is_an_evaluation_with_some_fitted_parameters_changed(tmp_path):
+    fv.configure("corner")
+    try:
+        log = fv.Log(tmp_path / "none.csv")
+        for i, f in enumerate((6.0, 5.0), start=1):
+            rec = {n: fv.FIT[n]["grid"][0] for n in fv.NAMES}
+            rec.update({"eval": float(i), "phase": "nm", "objective": f,
+                        fv.NAMES[0]: fv.FIT[fv.NAMES[0]]["grid"][0] + 0.001 * i})
+            log.order.append(rec)
+        a, b = fv.NAMES[:2]
+        lo, hi = fv.FIT[b]["bounds"]
+        x = fv.probe_point(log, [f"{b}={0.5 * (lo + hi)}"])  # from the best (#2)
+        assert x[a] == pytest.approx(log.order[1][a]) and x[b] == pytest.approx(0.5 * (lo + hi))
+        assert fv.probe_point(log, [], 1)[a] == pytest.approx(log.order[0][a])
+        with pytest.raises(SystemExit, match="not a fitted parameter"):
+            fv.probe_point(log, ["nonsense=1"])
+        with pytest.raises(SystemExit, match="outside"):
+            fv.probe_point(log, [f"{b}={hi + 1}"])
+        with pytest.raises(SystemExit, match="not a number"):
+            fv.probe_point(log, [f"{b}=x"])
+    finally:
+        fv.configure("corner")
