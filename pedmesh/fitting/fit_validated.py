@@ -1197,8 +1197,9 @@ def reach_table(rec: dict[str, Any], exp_rate_hz: float | None = None) -> list[s
              f"density within {FD_HALF_WIDTH:g} /m^2 of each bin, simulation / experiment "
              f"(simulated trajectories at {TRAJECTORY_RATE_HZ:g} Hz). A run enters a bin's "
              f"run-by-run speed only with {FD_PAIR_MIN} samples there in both; one that the "
-             "model never brings to a density the experiment reaches drops out of that bin, "
-             "and the objective does not see it.", "",
+             "model never brings to a density the experiment reaches drops out of that bin"
+             + (", and only the pooled speeds see it." if POOLED_TOO
+                else ", and the objective does not see it."), "",
              f"| entrance | run | {head} |", "|---|---|" + "---|" * len(FD_RHOS)]
     for ent in ENTRANCES:
         t = _suffix(ent)
@@ -1211,6 +1212,20 @@ def reach_table(rec: dict[str, Any], exp_rate_hz: float | None = None) -> list[s
                 sim = n_sim / TRAJECTORY_RATE_HZ
                 exp = n_exp / exp_rate_hz
                 cells.append(f"{_f(sim, '.1f')} / {_f(exp, '.1f')}")
+            lines.append(f"| {ent} | {name} | " + " | ".join(cells) + " |")
+    lines += ["", "The mean Voronoi speed [m/s] of each run in each bin, simulation (its "
+              "realisations' samples pooled) / experiment (- where a side has no sample): "
+              "one density can hold a moving crowd and a queue.", "",
+              f"| entrance | run | {head} |", "|---|---|" + "---|" * len(FD_RHOS)]
+    for ent in ENTRANCES:
+        t = _suffix(ent)
+        for name in CORRIDOR_RUNS:
+            cells = []
+            for d in FD_RHOS:
+                key = f"{t}/{name}/rho={d:g}"
+                v = [float(rec.get(f"{q}{key}", math.nan)) for q in ("v_sim", "v_exp")]
+                n = [float(rec.get(f"{q}{key}", 0.0)) for q in ("n_sim", "n_exp")]
+                cells.append(" / ".join(_f(vi) if ni > 0 else "-" for vi, ni in zip(v, n)))
             lines.append(f"| {ent} | {name} | " + " | ".join(cells) + " |")
     return lines + [""]
 

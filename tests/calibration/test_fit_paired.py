@@ -104,15 +104,22 @@ def test_the_report_says_how_long_each_run_stays_at_each_density(clearance):
     rec = _rec({a: {2.0: (0, 0.0, 160, 0.9)},
                 b: {1.0: (n_real * 25 * TRAJECTORY_RATE_HZ, 1.2, 320, 1.3)}})
     lines = fv.reach_table(rec)
-    row = {(r.split(" | ")[0].strip("| "), r.split(" | ")[1]): r for r in lines
+    cut = lines.index(next(x for x in lines if "mean Voronoi speed" in x))
+    row = {(r.split(" | ")[0].strip("| "), r.split(" | ")[1]): r for r in lines[:cut]
            if r.startswith("| ") and " | uo-" in r}
     ent = fv.ENTRANCES[0]
     assert row[ent, a].split(" | ")[3] == "0.0 / 10.0"  # 2 /m^2: never in the model
     assert row[ent, b].split(" | ")[2] == "25.0 / 20.0"  # 1 /m^2
     # the experiment's seconds follow its frame rate
     slow = {(r.split(" | ")[0].strip("| "), r.split(" | ")[1]): r
-            for r in fv.reach_table(rec, 8.0) if r.startswith("| ") and " | uo-" in r}
+            for r in fv.reach_table(rec, 8.0)[:cut] if r.startswith("| ") and " | uo-" in r}
     assert slow[ent, a].split(" | ")[3] == "0.0 / 20.0"
+    # the second table: each run's speed per bin, "-" where a side has no sample
+    speeds = [r for r in lines[cut:] if r.startswith(f"| {ent} | ")]
+    row_a = next(r for r in speeds if f" | {a} | " in r)
+    row_b = next(r for r in speeds if f" | {b} | " in r)
+    assert row_a.split(" | ")[3] == "- / 0.90"  # 2 /m^2: the experiment moving, not the model
+    assert row_b.split(" | ")[2] == "1.20 / 1.30"
     fv.configure("corner")
     assert fv.reach_table(rec) == []
 
