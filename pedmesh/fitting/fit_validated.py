@@ -804,6 +804,17 @@ def objective(rec: dict[str, Any]) -> float:
 
 
 # --------------------------------------------------------------------------- the CSV
+def _records(rows):
+    """The CSV rows ``rows`` (a csv.DictReader) of this fit's fixed set, as records (numbers
+    parsed; ``fixed``, ``phase`` and ``date`` kept as text)."""
+    for row in rows:
+        if row.get("fixed") != FIXED_KEY:
+            continue
+        rec = {k: _num(v) for k, v in row.items()}
+        rec["fixed"], rec["phase"], rec["date"] = row["fixed"], row["phase"], row["date"]
+        yield rec
+
+
 class Log:
     """The evaluations so far (read from and appended to the CSV ``path``; first those of
     the CSVs ``reuse`` of another fit of the same model, re-scored with this fit's
@@ -818,34 +829,28 @@ class Log:
         self.header: list[str] | None = None
         for other in reuse:
             with Path(other).open(newline="") as fh:
-                for row in csv.DictReader(fh):
-                    if row.get("fixed") != FIXED_KEY or (
-                            reuse_upto is not None and int(row["eval"]) > reuse_upto):
+                for rec in _records(csv.DictReader(fh)):
+                    if reuse_upto is not None and int(rec["eval"]) > reuse_upto:
                         continue
-                    rec = {k: _num(v) for k, v in row.items()}
-                    rec["fixed"], rec["phase"], rec["date"] = row["fixed"], "reused", \
-                        row["date"]
+                    rec["phase"] = "reused"
                     if POOLED_TOO:
                         pooled_errors(rec)
                     rec["objective"] = objective(rec)
-                    if key_of(rec) not in self.rows:
-                        self.rows[key_of(rec)] = rec
-                        self.order.append(rec)
+                    self._keep(rec)
         if path.is_file():
             with path.open(newline="") as fh:
                 reader = csv.DictReader(fh)
                 self.header = reader.fieldnames
-                for row in reader:
-                    if row.get("fixed") != FIXED_KEY:
-                        continue
-                    rec = {k: _num(v) for k, v in row.items()}
-                    rec["fixed"], rec["phase"], rec["date"] = row["fixed"], row["phase"], \
-                        row["date"]
-                    k = key_of(rec)
-                    if k not in self.rows:
-                        self.rows[k] = rec
-                        self.order.append(rec)
+                for rec in _records(reader):
+                    self._keep(rec)
         self.resumed = len(self.order)
+
+    def _keep(self, rec: dict[str, Any]) -> None:
+        """``rec`` into the log unless a row of its point was read before."""
+        k = key_of(rec)
+        if k not in self.rows:
+            self.rows[k] = rec
+            self.order.append(rec)
 
     def get(self, x) -> dict[str, Any] | None:
         return self.rows.get(key_of(x))
